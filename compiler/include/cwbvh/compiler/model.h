@@ -1,0 +1,107 @@
+// The compiler's internal data model: what each stage hands to the next.
+//   import_*  -> Scene (cleaned triangle soup + source map)
+//   build_*   -> BinaryBvh (one triangle reference per leaf)
+//   collapse  -> WideBvh  (8-wide, <=3 triangles per leaf, slots assigned)
+//   encode    -> CwbvhNode[] + TriangleRecord[] (format/)
+// Host-only (STL allowed).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "cwbvh/format.h"
+
+namespace cwbvh::compiler {
+
+using Vec3 = std::array<float, 3>;
+
+/// Axis-aligned box in float. Empty: lo = +inf, hi = -inf.
+struct Aabb {
+    Vec3 lo{kInf, kInf, kInf};
+    Vec3 hi{-kInf, -kInf, -kInf};
+    static constexpr float kInf = __builtin_huge_valf();
+
+    void grow(const Vec3& p) {
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = lo[a] < p[a] ? lo[a] : p[a];
+            hi[a] = hi[a] > p[a] ? hi[a] : p[a];
+        }
+    }
+    void grow(const Aabb& b) { grow(b.lo); grow(b.hi); }
+    bool empty() const { return !(lo[0] <= hi[0] && lo[1] <= hi[1] && lo[2] <= hi[2]); }
+    /// Half surface area in double (the SAH only needs ratios).
+    double half_area() const {
+        if (empty()) return 0.0;
+        const double dx = double(hi[0]) - lo[0], dy = double(hi[1]) - lo[1], dz = double(hi[2]) - lo[2];
+        return dx * dy + dy * dz + dz * dx;
+    }
+};
+
+/// Cleaned, merged input. Triangle i ("stored triangle id") has vertices
+/// vertices[indices[i][k]] and comes from sources[i].
+struct Scene {
+    std::vector<Vec3> vertices;
+    std::vector<std::array<uint32_t, 3>> indices;
+    std::vector<SourceRef> sources;        ///< one per triangle
+    std::vector<std::string> input_names;  ///< SourceRef::input indexes this
+
+    uint64_t input_triangles = 0;          ///< before cleaning
+    /// Dropped triangles by reason ("nonfinite", "degenerate", ...).
+    std::map<std::string, uint64_t> dropped;
+    /// Skipped non-triangle primitives by kind ("points", "lines", ...).
+    std::map<std::string, uint64_t> skipped_primitives;
+
+    size_t triangle_count() const { return indices.size(); }
+    std::array<Vec3, 3> triangle(size_t i) const {
+        return {vertices[indices[i][0]], vertices[indices[i][1]], vertices[indices[i][2]]};
+    }
+};
+
+/// Binary BVH with exactly one triangle reference per leaf. Node 0 is the
+/// root. Nodes are in depth-first order (left subtree first) so that the
+/// layout is canonical whatever the thread count.
+struct BinaryNode {
+    Aabb box;                  ///< conservative bounds of the subtree (clipped for split references)
+    uint32_t child[2] = {kInvalidIndex, kInvalidIndex};  ///< internal: children; leaf: both invalid
+    uint32_t prim = kInvalidIndex;  ///< leaf: stored triangle id; internal: kInvalidIndex
+    bool is_leaf() const { return prim != kInvalidIndex; }
+};
+
+struct BinaryBvh {
+    std::vector<BinaryNode> nodes;
+    uint64_t references = 0;   ///< number of leaves (>= triangle count with spatial splits)
+    uint64_t spatial_splits = 0;
+    uint64_t object_splits = 0;
+};
+
+/// Collapse cost model (Ylitie et al. 2017, section 3; constants in the spec).
+struct CollapseConfig {
+    float cost_node = 1.0f;   ///< C_node: cost of traversing one wide node
+    float cost_prim = 0.3f;   ///< C_prim: cost of intersecting one triangle
+    int max_leaf = kMaxLeafTriangles;
+    CollapseKind kind = kCollapseOptimal;
+};
+
+/// 8-wide tree before quantization. Children are already in their slots.
+struct WideChild {
+    enum Kind : uint8_t { kEmpty, kInternal, kLeaf } kind = kEmpty;
+    Aabb box;
+    uint32_t node = kInvalidIndex;   ///< kInternal: index into WideBvh::nodes
+    uint32_t first_ref = 0;          ///< kLeaf: first index into WideBvh::leaf_refs
+    uint32_t ref_count = 0;          ///< kLeaf: 1..3
+};
+struct WideNode {
+    Aabb box;
+    std::array<WideChild, 8> slots;
+};
+struct WideBvh {
+    std::vector<WideNode> nodes;        ///< node 0 = root (always internal)
+    /// Stored triangle ids in leaf order (one per reference); the TRIS section
+    /// is this list with vertices attached.
+    std::vector<uint32_t> leaf_refs;
+};
+
+}  // namespace cwbvh::compiler
