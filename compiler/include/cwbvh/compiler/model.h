@@ -85,23 +85,36 @@ struct CollapseConfig {
     CollapseKind kind = kCollapseOptimal;
 };
 
-/// 8-wide tree before quantization. Children are already in their slots.
+/// 8-wide tree before quantization (Ylitie et al. 2017, section 3.1).
+/// Produced by collapse_wide(), slots permuted by assign_slots(); the final
+/// NODE/TRIS order is chosen by encode_cwbvh(), so the order of
+/// WideBvh::nodes and WideBvh::leaf_refs is only required to be deterministic.
 struct WideChild {
     enum Kind : uint8_t { kEmpty, kInternal, kLeaf } kind = kEmpty;
-    Aabb box;
+    Aabb box;                        ///< exact (unquantized) bounds: the collapsed binary node's box
     uint32_t node = kInvalidIndex;   ///< kInternal: index into WideBvh::nodes
     uint32_t first_ref = 0;          ///< kLeaf: first index into WideBvh::leaf_refs
-    uint32_t ref_count = 0;          ///< kLeaf: 1..3
+    uint32_t ref_count = 0;          ///< kLeaf: 1..3 (after de-duplication)
 };
 struct WideNode {
-    Aabb box;
+    Aabb box;                        ///< exact bounds (the binary node this wide node came from)
     std::array<WideChild, 8> slots;
+    int child_count() const {
+        int c = 0;
+        for (const WideChild& ch : slots) c += ch.kind != WideChild::kEmpty;
+        return c;
+    }
 };
 struct WideBvh {
     std::vector<WideNode> nodes;        ///< node 0 = root (always internal)
-    /// Stored triangle ids in leaf order (one per reference); the TRIS section
-    /// is this list with vertices attached.
+    /// Stored triangle ids in leaf order (one per reference, duplicates of one
+    /// triangle inside the same wide leaf removed); the TRIS section is this
+    /// list, re-ordered by the encoder, with vertices attached.
     std::vector<uint32_t> leaf_refs;
+    /// Per binary node: index into leaf_refs of that binary leaf's reference
+    /// (kInvalidIndex for internal binary nodes). Two binary leaves with the
+    /// same triangle in the same wide leaf share one entry. Used for BVH2.
+    std::vector<uint32_t> binary_leaf_ref;
 };
 
 }  // namespace cwbvh::compiler

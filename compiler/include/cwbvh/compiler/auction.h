@@ -1,0 +1,38 @@
+// Octant-aware child slot assignment (Ylitie et al. 2017, section 3.2) solved
+// with the auction algorithm (Bertsekas 1992, "Auction algorithms for network
+// flow problems: a tutorial introduction").
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "cwbvh/compiler/model.h"
+
+namespace cwbvh::compiler {
+
+/// Permutes the children of every wide node so that slot s holds the child
+/// for which a ray of octant s (bit 2 = x<0, bit 1 = y<0, bit 0 = z<0) is
+/// most likely to be traversed first: minimises sum_c cost(c, slot(c)) with
+///   cost(c, s) = dot(centre(c) - centre(parent), d_s),
+///   d_s[a] = -1 if bit (2-a) of s is set, else +1.
+/// Deterministic.
+void assign_slots(WideBvh& wide);
+
+/// Exact maximum-benefit assignment of 8 persons to 8 objects for integer
+/// benefits |b| <= 2^40: forward auction, Gauss–Seidel bidding (lowest
+/// unassigned person first, ties to the lowest object), epsilon scaling down
+/// to eps = 1 on benefits scaled by 9 (> n = 8), which makes the result
+/// optimal (Bertsekas 1992, prop. 1). object_of[i] = object of person i.
+void auction_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::array<int, 8>& object_of);
+
+/// The slot cost table of one wide node: cost[i][s] for child slot i
+/// (empty slots: 0 for every s).
+std::array<std::array<double, 8>, 8> slot_cost_table(const WideNode& node);
+
+/// Minimum-cost assignment for a real cost table: costs are mapped to integers
+/// (scaled so that max |cost| -> 2^30, rounded to nearest) and solved exactly
+/// with auction_assign. The result is optimal up to 8 rounding steps of
+/// max|cost| * 2^-30.
+void assign_min_cost(const std::array<std::array<double, 8>, 8>& cost, std::array<int, 8>& slot_of);
+
+}  // namespace cwbvh::compiler

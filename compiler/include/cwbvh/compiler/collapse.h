@@ -1,0 +1,60 @@
+// Binary BVH -> 8-wide BVH (Ylitie, Karras, Laine 2017, "Efficient Incoherent
+// Ray Traversal on GPUs Through Compressed Wide BVHs", section 3.1).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "cwbvh/compiler/model.h"
+
+namespace cwbvh::compiler {
+
+/// Collapses a binary BVH with one triangle reference per leaf into an 8-wide
+/// BVH with <= config.max_leaf (<= 3) triangles per leaf. The root is always an
+/// internal wide node (a one-triangle scene gives a root with one leaf child).
+///   kCollapseOptimal: the SAH-optimal dynamic program of Ylitie et al. 2017.
+///   kCollapseGreedy:  top-down collapse (Wald et al. 2008 / Afra et al. 2013
+///                     style): open the child with the largest surface area
+///                     until 8 children; a subtree with <= max_leaf references
+///                     becomes a leaf.
+/// Duplicate references of one triangle (spatial splits) that land in the same
+/// wide leaf are stored once. Children occupy slots 0..k-1; call
+/// assign_slots() to order them. Errors: malformed binary trees (bad child
+/// index, shared or unreachable node, empty/non-finite box), bad config.
+[[nodiscard]] bool collapse_wide(const BinaryBvh& binary, const CollapseConfig& config, WideBvh& out,
+                                 std::string& error);
+
+/// SAH cost of a wide tree, normalised by the root's area (spec formula):
+///   sum over internal nodes C_node * A(n) / A(root)
+/// + sum over leaf children C_prim * count * A(leaf) / A(root)
+/// A = surface area of the exact (unquantized) box. A root of zero area
+/// (then every area is zero) gives 0.
+double sah_cost_wide(const WideBvh& wide, float c_node, float c_prim);
+
+/// Average number of non-empty slots per wide node.
+double wide_avg_children(const WideBvh& wide);
+
+namespace detail {
+/// Checks the BinaryBvh invariants the collapse relies on (node 0 root, leaf
+/// <=> prim valid, children with larger indices, every non-root node has
+/// exactly one parent, finite non-empty boxes) and counts the leaf references
+/// under every node (saturating at UINT32_MAX).
+[[nodiscard]] bool check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count,
+                                std::string& error);
+
+/// Appends a wide leaf made of the binary leaves under `node` (left first,
+/// duplicates removed) to wide.leaf_refs and fills binary_leaf_ref.
+WideChild make_wide_leaf(const BinaryBvh& binary, uint32_t node, WideBvh& wide);
+
+/// Number of distinct triangles among the binary leaves under `node`
+/// (which must hold at most `limit` references; the answer is then <= limit).
+uint32_t distinct_leaf_triangles(const BinaryBvh& binary, uint32_t node);
+
+bool collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
+                      const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error);
+bool collapse_greedy(const BinaryBvh& binary, const CollapseConfig& config,
+                     const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error);
+}  // namespace detail
+
+}  // namespace cwbvh::compiler

@@ -1,0 +1,54 @@
+// WideBvh -> the NODE / TRIS / BVH2 sections of a .cwbvh file.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "cwbvh/compiler/model.h"
+#include "cwbvh/format.h"
+
+namespace cwbvh::compiler {
+
+struct EncodedTree {
+    std::vector<CwbvhNode> nodes;           ///< NODE, node 0 = root
+    std::vector<TriangleRecord> triangles;  ///< TRIS, leaf order
+    std::vector<Bvh2Node> bvh2;             ///< BVH2 (filled by encode_bvh2, optional)
+    /// WideBvh::leaf_refs index -> TRIS index.
+    std::vector<uint32_t> ref_to_tri;
+    /// NODE index -> WideBvh::nodes index.
+    std::vector<uint32_t> node_to_wide;
+    double avg_children = 0;
+    uint32_t max_leaf_triangles = 0;
+    double sah_wide = 0;                    ///< sah_cost_wide(wide, c_node, c_prim)
+};
+
+/// Layout (deterministic): depth first with contiguous sibling blocks. When a
+/// node is visited, its internal children get consecutive NODE indices (in
+/// slot order) at the end of NODE and the triangles of its leaf children get
+/// consecutive TRIS records (in slot order) at the end of TRIS; its children
+/// are then visited in slot order. So node 0 is the root, every child has a
+/// larger index than its parent, siblings are adjacent and a subtree's nodes
+/// are close together. Unused bases are 0 (child_base when imask == 0,
+/// tri_base when the node has no leaf child).
+/// c_node/c_prim only feed EncodedTree::sah_wide.
+[[nodiscard]] bool encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, std::string& error,
+                                float c_node = 1.0f, float c_prim = 0.3f);
+
+/// BVH2 section: Aila–Laine 64-byte nodes over the binary BVH's internal nodes
+/// (same order as BinaryBvh::nodes, i.e. depth first), leaves point to
+/// TRIS[~child] = the TRIS record of that binary leaf's reference in the wide
+/// leaf order (tree.ref_to_tri[wide.binary_leaf_ref[leaf]]). A binary BVH whose
+/// root is a leaf (single reference) gives one node with that leaf in both children.
+[[nodiscard]] bool encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree& tree,
+                               std::vector<Bvh2Node>& out, std::string& error);
+
+/// Self-check: decodes every node and checks that every child's decoded box
+/// contains its exact WideChild box, that meta/imask/bases/indices are
+/// consistent and in range, every node is reached exactly once from the root,
+/// every TRIS record is referenced exactly once and matches the scene, and
+/// every stored triangle of the scene appears in at least one leaf.
+[[nodiscard]] bool verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene& scene,
+                                  std::string& error);
+
+}  // namespace cwbvh::compiler

@@ -1,0 +1,110 @@
+// Child slot assignment (Ylitie, Karras, Laine 2017, section 3.2, "octant-based
+// traversal order") solved with the forward auction algorithm of Bertsekas
+// (1992, "Auction algorithms for network flow problems: a tutorial
+// introduction", Comput. Optim. Appl. 1:7-66), with epsilon scaling.
+#include "cwbvh/compiler/auction.h"
+
+#include <cmath>
+#include <cstdlib>
+
+namespace cwbvh::compiler {
+
+void auction_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::array<int, 8>& object_of) {
+    constexpr int n = 8;
+    // Benefits scaled by n + 1 = 9: with integer benefits, eps-complementary
+    // slackness at eps = 1 (i.e. 1/9 of a unit < 1/n) implies optimality
+    // (Bertsekas 1992, proposition 1). Termination is exact (integers).
+    int64_t b[n][n];
+    int64_t lo = 0, hi = 0;
+    for (int i = 0; i < n; ++i) {
+        for (int j = 0; j < n; ++j) {
+            b[i][j] = benefit[i][j] * (n + 1);
+            if (i == 0 && j == 0) lo = hi = b[i][j];
+            lo = b[i][j] < lo ? b[i][j] : lo;
+            hi = b[i][j] > hi ? b[i][j] : hi;
+        }
+    }
+    int64_t price[n] = {};
+    int owner[n];
+    int64_t eps = (hi - lo) / 4;
+    if (eps < 1) eps = 1;
+    for (;;) {
+        // One scaling phase: start unassigned, keep the prices.
+        for (int j = 0; j < n; ++j) owner[j] = -1;
+        for (int i = 0; i < n; ++i) object_of[i] = -1;
+        for (;;) {
+            int i = 0;  // fixed bidding order: the lowest unassigned person
+            while (i < n && object_of[i] >= 0) ++i;
+            if (i == n) break;
+            int best = 0;
+            int64_t v1 = b[i][0] - price[0];
+            for (int j = 1; j < n; ++j) {
+                const int64_t v = b[i][j] - price[j];
+                if (v > v1) {  // ties: lowest object
+                    v1 = v;
+                    best = j;
+                }
+            }
+            bool have_second = false;
+            int64_t v2 = 0;
+            for (int j = 0; j < n; ++j) {
+                if (j == best) continue;
+                const int64_t v = b[i][j] - price[j];
+                if (!have_second || v > v2) {
+                    v2 = v;
+                    have_second = true;
+                }
+            }
+            price[best] += v1 - v2 + eps;  // bid increment >= eps > 0
+            if (owner[best] >= 0) object_of[owner[best]] = -1;
+            owner[best] = i;
+            object_of[i] = best;
+        }
+        if (eps == 1) break;
+        eps = eps / 4 > 1 ? eps / 4 : 1;
+    }
+}
+
+std::array<std::array<double, 8>, 8> slot_cost_table(const WideNode& node) {
+    std::array<std::array<double, 8>, 8> cost{};
+    double centre[3];
+    for (int a = 0; a < 3; ++a) centre[a] = 0.5 * (double(node.box.lo[a]) + double(node.box.hi[a]));
+    for (int i = 0; i < kWidth; ++i) {
+        const WideChild& ch = node.slots[i];
+        if (ch.kind == WideChild::kEmpty) continue;
+        double rel[3];
+        for (int a = 0; a < 3; ++a) rel[a] = 0.5 * (double(ch.box.lo[a]) + double(ch.box.hi[a])) - centre[a];
+        for (int s = 0; s < kWidth; ++s) {
+            double c = 0.0;
+            // d_s: -1 on axis a where bit (2 - a) of s is set (bit 2 = x, bit 1 = y, bit 0 = z).
+            for (int a = 0; a < 3; ++a) c += (s >> (2 - a) & 1) ? -rel[a] : rel[a];
+            cost[i][s] = c;
+        }
+    }
+    return cost;
+}
+
+void assign_min_cost(const std::array<std::array<double, 8>, 8>& cost, std::array<int, 8>& slot_of) {
+    double max_abs = 0.0;
+    for (const auto& row : cost)
+        for (double c : row) max_abs = std::fabs(c) > max_abs ? std::fabs(c) : max_abs;
+    std::array<std::array<int64_t, 8>, 8> benefit{};
+    if (max_abs > 0.0 && std::isfinite(max_abs)) {
+        const double scale = std::ldexp(1.0, 30) / max_abs;
+        for (int i = 0; i < 8; ++i)
+            for (int j = 0; j < 8; ++j) benefit[i][j] = -std::llround(cost[i][j] * scale);  // maximise -cost
+    }
+    auction_assign(benefit, slot_of);
+}
+
+void assign_slots(WideBvh& wide) {
+    for (WideNode& node : wide.nodes) {
+        std::array<int, 8> slot_of{};
+        assign_min_cost(slot_cost_table(node), slot_of);
+        std::array<WideChild, 8> slots;
+        for (int i = 0; i < kWidth; ++i) slots[slot_of[i]] = node.slots[i];
+        node.slots = slots;
+    }
+}
+
+}  // namespace cwbvh::compiler

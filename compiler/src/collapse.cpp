@@ -1,0 +1,144 @@
+// collapse_wide(): input checks and helpers shared by the optimal (DP) and
+// greedy collapses. Ylitie, Karras, Laine 2017, section 3.1.
+#include "cwbvh/compiler/collapse.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace cwbvh::compiler {
+namespace detail {
+
+bool check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count, std::string& error) {
+    const size_t n = binary.nodes.size();
+    if (n == 0) {
+        error = "binary BVH has no nodes";
+        return false;
+    }
+    if (n >= size_t(kInvalidIndex)) {
+        error = "binary BVH has too many nodes";
+        return false;
+    }
+    std::vector<uint8_t> parents(n, 0);
+    for (size_t i = 0; i < n; ++i) {
+        const BinaryNode& node = binary.nodes[i];
+        for (int a = 0; a < 3; ++a) {
+            if (!std::isfinite(node.box.lo[a]) || !std::isfinite(node.box.hi[a]) || node.box.lo[a] > node.box.hi[a]) {
+                error = "binary BVH node " + std::to_string(i) + " has an empty or non-finite box";
+                return false;
+            }
+        }
+        if (node.is_leaf()) {
+            if (node.child[0] != kInvalidIndex || node.child[1] != kInvalidIndex) {
+                error = "binary BVH leaf " + std::to_string(i) + " has children";
+                return false;
+            }
+            continue;
+        }
+        for (int c = 0; c < 2; ++c) {
+            const uint32_t ch = node.child[c];
+            // Children after their parent (depth-first order) rules out cycles.
+            if (ch == kInvalidIndex || ch <= i || ch >= n) {
+                error = "binary BVH node " + std::to_string(i) + " has a bad child index";
+                return false;
+            }
+            if (parents[ch]++ != 0) {
+                error = "binary BVH node " + std::to_string(ch) + " has more than one parent";
+                return false;
+            }
+        }
+    }
+    for (size_t i = 1; i < n; ++i) {
+        if (parents[i] != 1) {
+            error = "binary BVH node " + std::to_string(i) + " is unreachable from the root";
+            return false;
+        }
+    }
+    // Children have larger indices: a reverse sweep is a post-order.
+    ref_count.assign(n, 0);
+    for (size_t i = n; i-- > 0;) {
+        const BinaryNode& node = binary.nodes[i];
+        if (node.is_leaf()) {
+            ref_count[i] = 1;
+        } else {
+            const uint64_t sum = uint64_t(ref_count[node.child[0]]) + ref_count[node.child[1]];
+            ref_count[i] = uint32_t(std::min<uint64_t>(sum, std::numeric_limits<uint32_t>::max()));
+        }
+    }
+    return true;
+}
+
+namespace {
+// Binary leaves under `node`, left first (explicit stack: depth can be large
+// in general, though callers only use this on subtrees of <= 3 references).
+template <class F>
+void for_each_leaf(const BinaryBvh& binary, uint32_t node, F&& f) {
+    std::vector<uint32_t> stack{node};
+    while (!stack.empty()) {
+        const uint32_t i = stack.back();
+        stack.pop_back();
+        const BinaryNode& b = binary.nodes[i];
+        if (b.is_leaf()) {
+            f(i);
+        } else {
+            stack.push_back(b.child[1]);
+            stack.push_back(b.child[0]);
+        }
+    }
+}
+}  // namespace
+
+uint32_t distinct_leaf_triangles(const BinaryBvh& binary, uint32_t node) {
+    uint32_t prims[kMaxNodeTriangles];
+    uint32_t count = 0, total = 0;
+    for_each_leaf(binary, node, [&](uint32_t leaf) {
+        const uint32_t p = binary.nodes[leaf].prim;
+        ++total;
+        if (std::find(prims, prims + count, p) == prims + count && count < kMaxNodeTriangles) prims[count++] = p;
+    });
+    return total > kMaxNodeTriangles ? total : count;
+}
+
+WideChild make_wide_leaf(const BinaryBvh& binary, uint32_t node, WideBvh& wide) {
+    WideChild child;
+    child.kind = WideChild::kLeaf;
+    child.box = binary.nodes[node].box;
+    child.first_ref = uint32_t(wide.leaf_refs.size());
+    for_each_leaf(binary, node, [&](uint32_t leaf) {
+        const uint32_t p = binary.nodes[leaf].prim;
+        // Spatial splits can put two references of one triangle in the same
+        // leaf: store it once (the DP's leaf cost counts distinct triangles).
+        uint32_t k = child.first_ref;
+        while (k < wide.leaf_refs.size() && wide.leaf_refs[k] != p) ++k;
+        if (k == wide.leaf_refs.size()) wide.leaf_refs.push_back(p);
+        wide.binary_leaf_ref[leaf] = k;
+    });
+    child.ref_count = uint32_t(wide.leaf_refs.size()) - child.first_ref;
+    return child;
+}
+
+}  // namespace detail
+
+bool collapse_wide(const BinaryBvh& binary, const CollapseConfig& config, WideBvh& out, std::string& error) {
+    out = WideBvh{};
+    if (config.max_leaf < 1 || config.max_leaf > kMaxLeafTriangles) {
+        error = "collapse: max_leaf must be 1.." + std::to_string(kMaxLeafTriangles);
+        return false;
+    }
+    if (!(config.cost_node >= 0.0f) || !(config.cost_prim >= 0.0f) || !std::isfinite(config.cost_node) ||
+        !std::isfinite(config.cost_prim)) {
+        error = "collapse: cost model constants must be finite and >= 0";
+        return false;
+    }
+    std::vector<uint32_t> ref_count;
+    if (!detail::check_binary(binary, ref_count, error)) return false;
+    out.binary_leaf_ref.assign(binary.nodes.size(), kInvalidIndex);
+    switch (config.kind) {
+        case kCollapseOptimal: return detail::collapse_optimal(binary, config, ref_count, out, error);
+        case kCollapseGreedy: return detail::collapse_greedy(binary, config, ref_count, out, error);
+    }
+    error = "collapse: unknown collapse kind";
+    return false;
+}
+
+}  // namespace cwbvh::compiler

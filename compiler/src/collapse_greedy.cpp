@@ -1,0 +1,75 @@
+// Greedy top-down binary -> 8-wide collapse, the baseline the SAH-optimal DP
+// is compared against (Ylitie et al. 2017, section 3.1, citing Wald et al.
+// 2008 and Afra et al. 2013): starting from a binary node's two children,
+// repeatedly open the child with the largest surface area that is too big to
+// be a leaf, until there are 8 children or none can be opened. A subtree with
+// <= max_leaf references becomes a wide leaf, any other child a wide node.
+#include "cwbvh/compiler/collapse.h"
+
+namespace cwbvh::compiler::detail {
+
+bool collapse_greedy(const BinaryBvh& binary, const CollapseConfig& config,
+                     const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error) {
+    const uint32_t max_leaf = uint32_t(config.max_leaf);
+    struct Work {
+        uint32_t binary;
+        uint32_t wide;
+    };
+    std::vector<Work> work{{0, 0}};
+    out.nodes.emplace_back();
+    out.nodes[0].box = binary.nodes[0].box;
+    while (!work.empty()) {
+        const Work w = work.back();
+        work.pop_back();
+        const BinaryNode& b = binary.nodes[w.binary];
+        uint32_t children[kWidth];
+        int count = 0;
+        if (b.is_leaf()) {
+            children[count++] = w.binary;  // only the root: one leaf child
+        } else {
+            children[count++] = b.child[0];
+            children[count++] = b.child[1];
+        }
+        while (count < kWidth) {
+            int best = -1;
+            double best_area = -1.0;
+            for (int c = 0; c < count; ++c) {
+                if (ref_count[children[c]] <= max_leaf) continue;  // stays a leaf
+                const double a = binary.nodes[children[c]].box.half_area();
+                if (a > best_area) {  // ties: the first (leftmost) child
+                    best_area = a;
+                    best = c;
+                }
+            }
+            if (best < 0) break;
+            const BinaryNode& open = binary.nodes[children[best]];
+            // Replace by its two children, keeping the left-to-right order.
+            for (int c = count; c > best + 1; --c) children[c] = children[c - 1];
+            children[best] = open.child[0];
+            children[best + 1] = open.child[1];
+            ++count;
+        }
+        for (int c = 0; c < count; ++c) {
+            const uint32_t m = children[c];
+            if (ref_count[m] <= max_leaf) {
+                out.nodes[w.wide].slots[c] = make_wide_leaf(binary, m, out);
+                continue;
+            }
+            if (out.nodes.size() >= size_t(kInvalidIndex)) {
+                error = "collapse: too many wide nodes";
+                return false;
+            }
+            const uint32_t child = uint32_t(out.nodes.size());
+            out.nodes.emplace_back();
+            out.nodes[child].box = binary.nodes[m].box;
+            WideChild& slot = out.nodes[w.wide].slots[c];
+            slot.kind = WideChild::kInternal;
+            slot.box = binary.nodes[m].box;
+            slot.node = child;
+            work.push_back({m, child});
+        }
+    }
+    return true;
+}
+
+}  // namespace cwbvh::compiler::detail

@@ -1,0 +1,174 @@
+// WideBvh -> NODE (80-byte compressed wide nodes, Ylitie, Karras, Laine 2017,
+// section 3.3) and TRIS (triangle records in leaf order).
+#include "cwbvh/compiler/encode.h"
+
+#include <cassert>
+
+#include "cwbvh/compiler/collapse.h"
+#include "cwbvh/compiler/quantize.h"
+#include "cwbvh/node_decode.h"
+
+namespace cwbvh::compiler {
+
+namespace {
+
+bool check_wide(const WideBvh& wide, std::string& error) {
+    if (wide.nodes.empty()) {
+        error = "encode: wide BVH has no nodes";
+        return false;
+    }
+    if (wide.nodes.size() >= size_t(kInvalidIndex) || wide.leaf_refs.size() >= size_t(kInvalidIndex)) {
+        error = "encode: wide BVH too large for 32-bit indices";
+        return false;
+    }
+    std::vector<uint8_t> parents(wide.nodes.size(), 0);
+    for (size_t i = 0; i < wide.nodes.size(); ++i) {
+        const WideNode& node = wide.nodes[i];
+        if (node.child_count() == 0) {
+            error = "encode: wide node " + std::to_string(i) + " has no children";
+            return false;
+        }
+        uint32_t triangles = 0;
+        for (const WideChild& ch : node.slots) {
+            if (ch.kind == WideChild::kInternal) {
+                if (ch.node == 0 || ch.node >= wide.nodes.size() || parents[ch.node]++ != 0) {
+                    error = "encode: wide node " + std::to_string(i) + " has a bad or shared child index";
+                    return false;
+                }
+            } else if (ch.kind == WideChild::kLeaf) {
+                if (ch.ref_count < 1 || ch.ref_count > uint32_t(kMaxLeafTriangles) ||
+                    ch.first_ref > wide.leaf_refs.size() || ch.ref_count > wide.leaf_refs.size() - ch.first_ref) {
+                    error = "encode: wide node " + std::to_string(i) + " has a bad leaf";
+                    return false;
+                }
+                triangles += ch.ref_count;
+            } else if (ch.kind != WideChild::kEmpty) {
+                error = "encode: wide node " + std::to_string(i) + " has a bad slot kind";
+                return false;
+            }
+        }
+        if (triangles > uint32_t(kMaxNodeTriangles)) {
+            error = "encode: wide node " + std::to_string(i) + " has more than 24 triangles";
+            return false;
+        }
+    }
+    for (size_t i = 1; i < wide.nodes.size(); ++i) {
+        if (parents[i] != 1) {
+            error = "encode: wide node " + std::to_string(i) + " is unreachable";
+            return false;
+        }
+    }
+    return true;
+}
+
+}  // namespace
+
+bool encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, std::string& error, float c_node,
+                  float c_prim) {
+    out = EncodedTree{};
+    if (!check_wide(wide, error)) return false;
+    out.nodes.reserve(wide.nodes.size());
+    out.node_to_wide.reserve(wide.nodes.size());
+    out.triangles.reserve(wide.leaf_refs.size());
+    out.ref_to_tri.assign(wide.leaf_refs.size(), kInvalidIndex);
+
+    // Depth first with contiguous sibling blocks (see encode.h): the stack
+    // holds (wide node, NODE index) pairs whose NODE slot is already allocated.
+    struct Work {
+        uint32_t wide;
+        uint32_t out;
+    };
+    std::vector<Work> stack{{0, 0}};
+    out.nodes.emplace_back();
+    out.node_to_wide.push_back(0);
+    uint64_t children = 0;
+    while (!stack.empty()) {
+        const Work w = stack.back();
+        stack.pop_back();
+        const WideNode& node = wide.nodes[w.wide];
+        CwbvhNode cn{};
+        Aabb boxes[kWidth];
+        uint8_t used = 0;
+        Work kids[kWidth];
+        int kid_count = 0;
+        for (int s = 0; s < kWidth; ++s) {
+            const WideChild& ch = node.slots[s];
+            if (ch.kind == WideChild::kEmpty) continue;
+            boxes[s] = ch.box;
+            used = uint8_t(used | (1u << s));
+            ++children;
+            if (ch.kind == WideChild::kInternal) {
+                if (kid_count == 0) cn.child_base = uint32_t(out.nodes.size());
+                const uint32_t index = uint32_t(out.nodes.size());
+                out.nodes.emplace_back();
+                out.node_to_wide.push_back(ch.node);
+                kids[kid_count++] = {ch.node, index};
+                cn.imask = uint8_t(cn.imask | (1u << s));
+                cn.meta[s] = make_meta_internal(s);
+            }
+        }
+        bool have_leaf = false;
+        for (int s = 0; s < kWidth; ++s) {
+            const WideChild& ch = node.slots[s];
+            if (ch.kind != WideChild::kLeaf) continue;
+            if (!have_leaf) {
+                if (out.triangles.size() >= size_t(kInvalidIndex) - kMaxNodeTriangles) {
+                    error = "encode: too many triangle records for 32-bit indices";
+                    return false;
+                }
+                cn.tri_base = uint32_t(out.triangles.size());
+                have_leaf = true;
+            }
+            const uint32_t offset = uint32_t(out.triangles.size()) - cn.tri_base;
+            // check_wide bounds the node's triangles by 24, so offset + count <= 24.
+            assert(offset + ch.ref_count <= uint32_t(kMaxNodeTriangles));
+            cn.meta[s] = make_meta_leaf(int(ch.ref_count), int(offset));
+            for (uint32_t k = 0; k < ch.ref_count; ++k) {
+                const uint32_t ref = ch.first_ref + k;
+                const uint32_t prim = wide.leaf_refs[ref];
+                if (out.ref_to_tri[ref] != kInvalidIndex) {
+                    error = "encode: leaf reference " + std::to_string(ref) + " used by two leaves";
+                    return false;
+                }
+                if (prim >= scene.triangle_count()) {
+                    error = "encode: triangle id " + std::to_string(prim) + " out of range";
+                    return false;
+                }
+                TriangleRecord t{};
+                const auto& idx = scene.indices[prim];
+                for (int v = 0; v < 3; ++v) {
+                    if (idx[v] >= scene.vertices.size()) {
+                        error = "encode: triangle " + std::to_string(prim) + " has a bad vertex index";
+                        return false;
+                    }
+                }
+                for (int a = 0; a < 3; ++a) {
+                    t.v0[a] = scene.vertices[idx[0]][a];
+                    t.v1[a] = scene.vertices[idx[1]][a];
+                    t.v2[a] = scene.vertices[idx[2]][a];
+                }
+                t.prim = prim;
+                out.ref_to_tri[ref] = uint32_t(out.triangles.size());
+                out.triangles.push_back(t);
+            }
+            out.max_leaf_triangles = ch.ref_count > out.max_leaf_triangles ? ch.ref_count : out.max_leaf_triangles;
+        }
+        if (!quantize_node(boxes, used, cn, error)) {
+            error += " (wide node " + std::to_string(w.wide) + ")";
+            return false;
+        }
+        out.nodes[w.out] = cn;
+        for (int k = kid_count; k-- > 0;) stack.push_back(kids[k]);  // slot order: lowest slot next
+    }
+    for (size_t r = 0; r < out.ref_to_tri.size(); ++r) {
+        if (out.ref_to_tri[r] == kInvalidIndex) {
+            error = "encode: leaf reference " + std::to_string(r) + " is in no leaf";
+            return false;
+        }
+    }
+    out.avg_children = double(children) / double(out.nodes.size());
+    out.sah_wide = sah_cost_wide(wide, c_node, c_prim);
+    return true;
+}
+
+}  // namespace cwbvh::compiler
