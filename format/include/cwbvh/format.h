@@ -218,11 +218,11 @@ struct BuildInfo {
     double sah_binary;            ///< SAH cost of the binary tree (spec formula)
     double sah_wide;              ///< SAH cost of the wide tree (spec formula)
     double avg_children;          ///< average children per wide node
-    uint8_t reserved[152];        ///< must be 0
+    uint8_t reserved[144];        ///< must be 0
 };
 static_assert(sizeof(BuildInfo) == 256);
 static_assert(offsetof(BuildInfo, input_triangles) == 24);
-static_assert(offsetof(BuildInfo, sah_binary) == 80);
-static_assert(offsetof(BuildInfo, reserved) == 104);
+static_assert(offsetof(BuildInfo, sah_binary) == 88);
+static_assert(offsetof(BuildInfo, reserved) == 112);
 
 }  // namespace cwbvh
