@@ -1,0 +1,180 @@
+// Ray-triangle tests, chosen at compile time by TriangleTest.
+//   kWatertight: Woop, Benthin, Wald 2013, "Watertight Ray/Triangle Intersection"
+//                (JCGT 2(1)), with the paper's double-precision fallback.
+//   kFast:       Moller, Trumbore 1997, with no absolute epsilon anywhere (nothing
+//                depends on the scene's scale); not watertight.
+// Both accept hits with tmin <= t <= tmax (closed) and report u, v as the
+// barycentric weights of v1 and v2. A triangle whose plane contains the ray
+// (det == 0) is a miss in both.
+#pragma once
+
+#include <cstdint>
+
+#include "cwbvh/format.h"
+#include "cwbvh/fp.h"
+#include "cwbvh/hostdevice.h"
+#include "cwbvh/ray.h"
+
+namespace cwbvh {
+
+enum class TriangleTest : uint32_t { kWatertight = 0, kFast = 1 };
+
+struct TriangleHit {
+    float t, u, v;
+};
+
+// ---------------------------------------------------------------------------
+// Watertight test (Woop et al. 2013)
+// ---------------------------------------------------------------------------
+
+/// Per-ray shear constants (paper, section 3): kz = dominant axis of dir, kx, ky
+/// the other two, swapped when dir[kz] < 0 to keep the winding; the shear maps dir
+/// to (0, 0, 1/sz).
+struct WatertightRay {
+    float org[3];
+    int kx, ky, kz;
+    float sx, sy, sz;
+};
+
+CWBVH_HD CWBVH_INLINE WatertightRay make_watertight_ray(const Ray& r) {
+    WatertightRay w;
+    for (int a = 0; a < 3; ++a) w.org[a] = r.org[a];
+    const float ax = abs_f(r.dir[0]), ay = abs_f(r.dir[1]), az = abs_f(r.dir[2]);
+    w.kz = (ax > ay) ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2);
+    w.kx = w.kz == 2 ? 0 : w.kz + 1;
+    w.ky = w.kx == 2 ? 0 : w.kx + 1;
+    if (r.dir[w.kz] < 0.0f) {
+        const int tmp = w.kx;
+        w.kx = w.ky;
+        w.ky = tmp;
+    }
+    // dir[kz] != 0 for a traceable ray. These roundings are shared by every triangle
+    // the ray meets, so they cannot open a crack between neighbours.
+    w.sx = r.dir[w.kx] / r.dir[w.kz];
+    w.sy = r.dir[w.ky] / r.dir[w.kz];
+    w.sz = 1.0f / r.dir[w.kz];
+    return w;
+}
+
+/// Watertight test. Watertightness argument: the sheared vertex coordinates depend
+/// only on the vertex and the ray, and an edge function of a shared edge is computed
+/// as fl(fl(a*b) - fl(c*d)) in one triangle and exactly its negation in the other
+/// (mul_rn/sub_rn: never contracted to an fma, which would break the symmetry).
+/// Round-to-nearest is monotone, so a nonzero float edge function has the sign of the
+/// exact one; a zero one is recomputed in double, where the products of two floats are
+/// exact and one rounding keeps the sign. So every edge sign is exact for the sheared
+/// vertices, and a ray through an edge or vertex hits at least one of the triangles
+/// sharing it.
+CWBVH_HD CWBVH_INLINE bool intersect_triangle_watertight(const WatertightRay& w, const float* v0,
+                                                         const float* v1, const float* v2,
+                                                         float tmin, float tmax, TriangleHit& out) {
+    // Vertices relative to the origin, then sheared.
+    const float a_kx = sub_rn(v0[w.kx], w.org[w.kx]), a_ky = sub_rn(v0[w.ky], w.org[w.ky]);
+    const float a_kz = sub_rn(v0[w.kz], w.org[w.kz]);
+    const float b_kx = sub_rn(v1[w.kx], w.org[w.kx]), b_ky = sub_rn(v1[w.ky], w.org[w.ky]);
+    const float b_kz = sub_rn(v1[w.kz], w.org[w.kz]);
+    const float c_kx = sub_rn(v2[w.kx], w.org[w.kx]), c_ky = sub_rn(v2[w.ky], w.org[w.ky]);
+    const float c_kz = sub_rn(v2[w.kz], w.org[w.kz]);
+    const float ax = sub_rn(a_kx, mul_rn(w.sx, a_kz)), ay = sub_rn(a_ky, mul_rn(w.sy, a_kz));
+    const float bx = sub_rn(b_kx, mul_rn(w.sx, b_kz)), by = sub_rn(b_ky, mul_rn(w.sy, b_kz));
+    const float cx = sub_rn(c_kx, mul_rn(w.sx, c_kz)), cy = sub_rn(c_ky, mul_rn(w.sy, c_kz));
+
+    // Scaled barycentrics (edge functions).
+    float eu = sub_rn(mul_rn(cx, by), mul_rn(cy, bx));
+    float ev = sub_rn(mul_rn(ax, cy), mul_rn(ay, cx));
+    float ew = sub_rn(mul_rn(bx, ay), mul_rn(by, ax));
+    // Exact-sign early out (NaN from inf-inf fails both comparisons and goes on).
+    if ((eu < 0.0f || ev < 0.0f || ew < 0.0f) && (eu > 0.0f || ev > 0.0f || ew > 0.0f)) return false;
+
+    const float az = mul_rn(w.sz, a_kz), bz = mul_rn(w.sz, b_kz), cz = mul_rn(w.sz, c_kz);
+    const float det = add_rn(add_rn(eu, ev), ew);
+    const float tnum = add_rn(add_rn(mul_rn(eu, az), mul_rn(ev, bz)), mul_rn(ew, cz));
+    const float adet = abs_f(det);
+    // Float path only when all edge functions are nonzero and nothing is near under-
+    // or overflow: 2^-64 <= |det| <= 2^64 and |T| <= 2^100 (false for NaN and inf).
+    // Otherwise redo everything in double; products of floats are exact there and
+    // cannot over- or underflow (|x| in [2^-298, 2^256]). The edge signs agree with
+    // the float path's (see above), so mixing the two paths keeps the mesh closed.
+    if (eu != 0.0f && ev != 0.0f && ew != 0.0f && adet >= 5.42101086e-20f && adet <= 1.84467441e+19f &&
+        abs_f(tnum) <= 1.26765060e+30f) {
+        const float t = tnum / det;  // RN; the range test below is on the rounded t
+        if (!(t >= tmin && t <= tmax)) return false;
+        const float rcp = 1.0f / det;
+        out.t = t;
+        out.u = mul_rn(ev, rcp);
+        out.v = mul_rn(ew, rcp);
+        return true;
+    }
+    const double du = sub_rn(mul_rn(double(cx), double(by)), mul_rn(double(cy), double(bx)));
+    const double dv = sub_rn(mul_rn(double(ax), double(cy)), mul_rn(double(ay), double(cx)));
+    const double dw = sub_rn(mul_rn(double(bx), double(ay)), mul_rn(double(by), double(ax)));
+    if ((du < 0.0 || dv < 0.0 || dw < 0.0) && (du > 0.0 || dv > 0.0 || dw > 0.0)) return false;
+    const double ddet = du + dv + dw;
+    if (ddet == 0.0 || ddet != ddet) return false;  // ray in the triangle's plane, or NaN
+    const double dt = (du * double(az) + dv * double(bz) + dw * double(cz)) / ddet;
+    // tmin <= RN_f32(dt) iff tmin <= dt for float tmin (monotone rounding): test in
+    // double, then round.
+    if (!(dt >= double(tmin) && dt <= double(tmax))) return false;
+    out.t = float(dt);
+    out.u = float(dv / ddet);
+    out.v = float(dw / ddet);
+    return true;
+}
+
+// ---------------------------------------------------------------------------
+// Fast test (Moller & Trumbore 1997), no epsilon
+// ---------------------------------------------------------------------------
+
+CWBVH_HD CWBVH_INLINE bool intersect_triangle_fast(const Ray& r, const float* v0, const float* v1,
+                                                   const float* v2, float tmin, float tmax,
+                                                   TriangleHit& out) {
+    const float e1[3] = {v1[0] - v0[0], v1[1] - v0[1], v1[2] - v0[2]};
+    const float e2[3] = {v2[0] - v0[0], v2[1] - v0[1], v2[2] - v0[2]};
+    const float pv[3] = {r.dir[1] * e2[2] - r.dir[2] * e2[1], r.dir[2] * e2[0] - r.dir[0] * e2[2],
+                         r.dir[0] * e2[1] - r.dir[1] * e2[0]};
+    const float det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
+    // Only an exact zero is rejected: any absolute threshold would depend on the
+    // scene's scale (cwbvh-facts 1.5: tinybvh's 1e-7 occlusion epsilon).
+    if (det == 0.0f || !is_finite_f(det)) return false;
+    const float inv = 1.0f / det;
+    const float tv[3] = {r.org[0] - v0[0], r.org[1] - v0[1], r.org[2] - v0[2]};
+    const float u = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) * inv;
+    if (!(u >= 0.0f && u <= 1.0f)) return false;
+    const float qv[3] = {tv[1] * e1[2] - tv[2] * e1[1], tv[2] * e1[0] - tv[0] * e1[2],
+                         tv[0] * e1[1] - tv[1] * e1[0]};
+    const float v = (r.dir[0] * qv[0] + r.dir[1] * qv[1] + r.dir[2] * qv[2]) * inv;
+    if (!(v >= 0.0f && u + v <= 1.0f)) return false;
+    const float t = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) * inv;
+    if (!(t >= tmin && t <= tmax)) return false;
+    out.t = t;
+    out.u = u;
+    out.v = v;
+    return true;
+}
+
+// ---------------------------------------------------------------------------
+// Compile-time selection
+// ---------------------------------------------------------------------------
+
+template <TriangleTest kTest>
+struct TriangleIntersector;
+
+template <>
+struct TriangleIntersector<TriangleTest::kWatertight> {
+    WatertightRay w;
+    CWBVH_HD explicit TriangleIntersector(const Ray& r) : w(make_watertight_ray(r)) {}
+    CWBVH_HD bool operator()(const TriangleRecord& tri, float tmin, float tmax, TriangleHit& out) const {
+        return intersect_triangle_watertight(w, tri.v0, tri.v1, tri.v2, tmin, tmax, out);
+    }
+};
+
+template <>
+struct TriangleIntersector<TriangleTest::kFast> {
+    Ray r;
+    CWBVH_HD explicit TriangleIntersector(const Ray& ray) : r(ray) {}
+    CWBVH_HD bool operator()(const TriangleRecord& tri, float tmin, float tmax, TriangleHit& out) const {
+        return intersect_triangle_fast(r, tri.v0, tri.v1, tri.v2, tmin, tmax, out);
+    }
+};
+
+}  // namespace cwbvh

@@ -1,0 +1,126 @@
+// CPU reference tracer (see cpu_trace.h).
+#include "cwbvh/cpu_trace.h"
+
+#include <algorithm>
+#include <chrono>
+#include <thread>
+#include <vector>
+
+#include "cwbvh/traverse.h"
+#include "cwbvh/traverse_bvh2.h"
+
+namespace cwbvh {
+namespace {
+
+uint32_t clamp_count(size_t n) { return n > 0xFFFFFFFFu ? 0xFFFFFFFFu : uint32_t(n); }
+
+void accumulate(CpuTraceStats& s, TraceStatus status, const Hit& h, const TraceCounters& c) {
+    ++s.rays;
+    if (h.prim != kMissPrim) ++s.hits;
+    if (status == TraceStatus::kInvalidRay) ++s.invalid_rays;
+    if (status == TraceStatus::kStackOverflow) ++s.stack_overflows;
+    if (status == TraceStatus::kBadIndex) ++s.bad_indices;
+    s.nodes_visited += c.nodes;
+    s.triangles_tested += c.triangles;
+}
+
+// One chunk of rays with the test and mode fixed at compile time.
+template <TriangleTest kTest, HitMode kMode, bool kBvh2, class NodeT>
+CpuTraceStats trace_range(const NodeT* nodes, uint32_t node_count, const TriangleRecord* tris,
+                          uint32_t tri_count, const Ray* rays, Hit* hits, size_t begin, size_t end,
+                          const CpuTraceOptions& o) {
+    CpuTraceStats s;
+    for (size_t i = begin; i < end; ++i) {
+        TraceCounters c{0, 0};
+        TraceStatus st;
+        if constexpr (kBvh2) {
+            st = traverse_bvh2<kTest, kMode>(nodes, node_count, tris, tri_count, rays[i], hits[i], &c);
+        } else {
+            LocalStack<kCpuStackSize> stack;
+            st = traverse_cwbvh<kTest, kMode>(nodes, node_count, tris, tri_count, rays[i], hits[i], stack, &c);
+        }
+        if (o.counters) o.counters[i] = c;
+        if (o.statuses) o.statuses[i] = st;
+        accumulate(s, st, hits[i], c);
+    }
+    return s;
+}
+
+template <bool kBvh2, class NodeT>
+CpuTraceStats dispatch(const NodeT* nodes, uint32_t nc, const TriangleRecord* tris, uint32_t tc,
+                       const Ray* rays, Hit* hits, size_t b, size_t e, const CpuTraceOptions& o) {
+    const bool any = o.mode == HitMode::kAny;
+    if (o.test == TriangleTest::kWatertight) {
+        return any ? trace_range<TriangleTest::kWatertight, HitMode::kAny, kBvh2>(nodes, nc, tris, tc, rays, hits, b, e, o)
+                   : trace_range<TriangleTest::kWatertight, HitMode::kClosest, kBvh2>(nodes, nc, tris, tc, rays, hits, b, e, o);
+    }
+    return any ? trace_range<TriangleTest::kFast, HitMode::kAny, kBvh2>(nodes, nc, tris, tc, rays, hits, b, e, o)
+               : trace_range<TriangleTest::kFast, HitMode::kClosest, kBvh2>(nodes, nc, tris, tc, rays, hits, b, e, o);
+}
+
+template <bool kBvh2, class NodeT>
+CpuTraceStats trace_all(const NodeT* nodes, size_t node_count, const TriangleRecord* tris,
+                        size_t tri_count, const Ray* rays, Hit* hits, size_t ray_count,
+                        const CpuTraceOptions& o) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const uint32_t nc = clamp_count(node_count), tc = clamp_count(tri_count);
+    unsigned threads = o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+    // Chunks of at least 4096 rays, so tiny batches stay on the calling thread.
+    const size_t max_threads = std::max<size_t>(1, ray_count / 4096);
+    threads = unsigned(std::min<size_t>(threads, max_threads));
+    CpuTraceStats total;
+    if (threads <= 1) {
+        total = dispatch<kBvh2>(nodes, nc, tris, tc, rays, hits, 0, ray_count, o);
+    } else {
+        // Interleaved blocks of 1024 rays balance incoherent workloads; each ray is
+        // traced by exactly one thread, so results are thread-count independent.
+        constexpr size_t kBlock = 1024;
+        std::vector<CpuTraceStats> part(threads);
+        std::vector<std::thread> pool;
+        pool.reserve(threads);
+        for (unsigned t = 0; t < threads; ++t) {
+            pool.emplace_back([&, t] {
+                for (size_t b = size_t(t) * kBlock; b < ray_count; b += size_t(threads) * kBlock) {
+                    const CpuTraceStats s =
+                        dispatch<kBvh2>(nodes, nc, tris, tc, rays, hits, b, std::min(ray_count, b + kBlock), o);
+                    CpuTraceStats& p = part[t];
+                    p.rays += s.rays;
+                    p.hits += s.hits;
+                    p.invalid_rays += s.invalid_rays;
+                    p.stack_overflows += s.stack_overflows;
+                    p.bad_indices += s.bad_indices;
+                    p.nodes_visited += s.nodes_visited;
+                    p.triangles_tested += s.triangles_tested;
+                }
+            });
+        }
+        for (auto& th : pool) th.join();
+        for (const auto& p : part) {
+            total.rays += p.rays;
+            total.hits += p.hits;
+            total.invalid_rays += p.invalid_rays;
+            total.stack_overflows += p.stack_overflows;
+            total.bad_indices += p.bad_indices;
+            total.nodes_visited += p.nodes_visited;
+            total.triangles_tested += p.triangles_tested;
+        }
+    }
+    total.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return total;
+}
+
+}  // namespace
+
+CpuTraceStats trace_cwbvh_cpu(const CwbvhNode* nodes, size_t node_count, const TriangleRecord* tris,
+                              size_t tri_count, const Ray* rays, Hit* hits, size_t ray_count,
+                              const CpuTraceOptions& options) {
+    return trace_all<false>(nodes, node_count, tris, tri_count, rays, hits, ray_count, options);
+}
+
+CpuTraceStats trace_bvh2_cpu(const Bvh2Node* nodes, size_t node_count, const TriangleRecord* tris,
+                             size_t tri_count, const Ray* rays, Hit* hits, size_t ray_count,
+                             const CpuTraceOptions& options) {
+    return trace_all<true>(nodes, node_count, tris, tri_count, rays, hits, ray_count, options);
+}
+
+}  // namespace cwbvh
