@@ -1,0 +1,124 @@
+// Status codes, validation rule IDs and the error value every format/loader
+// function returns. Rule IDs are stable and listed in spec/cwbvh-format.md
+// ("Validation rules"); a test checks that the two lists agree.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <utility>
+
+namespace cwbvh {
+
+/// Coarse outcome; the rule ID says exactly which check failed.
+enum class Status : int {
+    kOk = 0,
+    kIoError = 1,             ///< cannot open, stat, map or write the file
+    kNotCwbvh = 2,            ///< wrong magic: not a .cwbvh file at all
+    kUnsupportedVersion = 3,  ///< major version this reader does not know
+    kUnsupported = 4,         ///< unknown section marked required
+    kCorrupt = 5,             ///< structure violates the spec
+    kChecksumMismatch = 6,    ///< header/table or payload checksum differs
+    kInvalidArgument = 7,     ///< caller error (writer input, bad options)
+};
+
+/// Short lower-case name ("corrupt", "checksum mismatch", ...).
+const char* status_name(Status s);
+
+/// Validation rule IDs (1xxx I/O, 2xxx identity/version, 3xxx header,
+/// 4xxx section table, 5xxx section content).
+namespace rule {
+// 1xxx: I/O (loader)
+inline constexpr uint32_t kOpenFailed = 1001;
+inline constexpr uint32_t kNotRegularFile = 1002;
+inline constexpr uint32_t kEmptyFile = 1003;
+inline constexpr uint32_t kMapFailed = 1004;
+inline constexpr uint32_t kWriteFailed = 1005;
+// 2xxx: identity and version
+inline constexpr uint32_t kBadMagic = 2001;
+inline constexpr uint32_t kTruncatedHeader = 2002;
+inline constexpr uint32_t kUnsupportedMajor = 2003;
+// 3xxx: header
+inline constexpr uint32_t kHeaderSize = 3001;
+inline constexpr uint32_t kFileSize = 3002;
+inline constexpr uint32_t kTableAlignment = 3003;
+inline constexpr uint32_t kTableOutsideFile = 3004;
+inline constexpr uint32_t kMetaChecksum = 3005;
+inline constexpr uint32_t kHeaderFlags = 3006;
+inline constexpr uint32_t kHeaderReserved = 3007;
+// 4xxx: section table
+inline constexpr uint32_t kSectionFlags = 4001;
+inline constexpr uint32_t kSectionReserved = 4002;
+inline constexpr uint32_t kSectionAlignment = 4003;
+inline constexpr uint32_t kSectionSize = 4004;
+inline constexpr uint32_t kSectionOutsideFile = 4005;
+inline constexpr uint32_t kSectionOverlapsHeader = 4006;
+inline constexpr uint32_t kSectionOverlap = 4007;
+inline constexpr uint32_t kDuplicateSection = 4008;
+inline constexpr uint32_t kUnknownRequiredSection = 4009;
+inline constexpr uint32_t kElementSize = 4010;
+inline constexpr uint32_t kElementCount = 4011;
+inline constexpr uint32_t kMissingSection = 4012;
+inline constexpr uint32_t kNonZeroPadding = 4013;
+inline constexpr uint32_t kSectionChecksum = 4014;
+// 51xx: NODE
+inline constexpr uint32_t kNodeExponent = 5101;
+inline constexpr uint32_t kNodeMeta = 5102;
+inline constexpr uint32_t kNodeImask = 5103;
+inline constexpr uint32_t kNodeChildRange = 5104;
+inline constexpr uint32_t kNodeChildOrder = 5105;
+inline constexpr uint32_t kNodeParents = 5106;
+inline constexpr uint32_t kNodeLeafRange = 5107;
+inline constexpr uint32_t kNodeLeafLayout = 5108;
+inline constexpr uint32_t kNodeTriangleUse = 5109;
+inline constexpr uint32_t kNodePlaneOrder = 5110;
+inline constexpr uint32_t kNodeEmptySlot = 5111;
+inline constexpr uint32_t kNodeNonFinite = 5112;
+// 52xx: TRIS
+inline constexpr uint32_t kTriPrim = 5201;
+inline constexpr uint32_t kTriReserved = 5202;
+inline constexpr uint32_t kTriNonFinite = 5203;
+// 53xx: PMAP
+inline constexpr uint32_t kPmapInput = 5301;
+// 54xx: BNDS
+inline constexpr uint32_t kBoundsInvalid = 5401;
+// 55xx: BILD
+inline constexpr uint32_t kBuildReserved = 5501;
+// 56xx: BVH2
+inline constexpr uint32_t kBvh2Child = 5601;
+inline constexpr uint32_t kBvh2Leaf = 5602;
+inline constexpr uint32_t kBvh2Reserved = 5603;
+inline constexpr uint32_t kBvh2NonFinite = 5604;
+inline constexpr uint32_t kBvh2Parents = 5605;
+// 57xx: VERT
+inline constexpr uint32_t kVertNonFinite = 5701;
+// 58xx: INDX
+inline constexpr uint32_t kIndexRange = 5801;
+// 59xx: SRCN
+inline constexpr uint32_t kNamesTerminator = 5901;
+}  // namespace rule
+
+/// The result of an operation: kOk, or a status, a rule ID and a one-line
+/// message naming the section and what is wrong (no file name: the caller
+/// that knows the path prefixes it). [[nodiscard]] on the type makes every
+/// function returning it nodiscard.
+struct [[nodiscard]] Result {
+    Status status = Status::kOk;
+    uint32_t rule = 0;
+    std::string message;
+
+    bool ok() const { return status == Status::kOk; }
+    static Result success() { return {}; }
+    static Result fail(Status s, uint32_t rule_id, std::string msg) {
+        return {s, rule_id, std::move(msg)};
+    }
+    /// "message [rule N]", or "ok".
+    std::string describe() const;
+};
+
+/// Default status for a rule ID (2001 -> kNotCwbvh, 3005/4014 -> checksum, ...).
+Status status_for_rule(uint32_t rule_id);
+
+/// A failed Result with the status implied by the rule.
+Result fail(uint32_t rule_id, std::string message);
+
+}  // namespace cwbvh

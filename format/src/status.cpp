@@ -1,0 +1,40 @@
+#include "cwbvh/status.h"
+
+namespace cwbvh {
+
+const char* status_name(Status s) {
+    switch (s) {
+        case Status::kOk: return "ok";
+        case Status::kIoError: return "I/O error";
+        case Status::kNotCwbvh: return "not a cwbvh file";
+        case Status::kUnsupportedVersion: return "unsupported version";
+        case Status::kUnsupported: return "unsupported";
+        case Status::kCorrupt: return "corrupt";
+        case Status::kChecksumMismatch: return "checksum mismatch";
+        case Status::kInvalidArgument: return "invalid argument";
+    }
+    return "unknown status";
+}
+
+Status status_for_rule(uint32_t rule_id) {
+    if (rule_id >= 1000 && rule_id < 2000) return Status::kIoError;
+    switch (rule_id) {
+        case rule::kBadMagic: return Status::kNotCwbvh;
+        case rule::kUnsupportedMajor: return Status::kUnsupportedVersion;
+        case rule::kUnknownRequiredSection: return Status::kUnsupported;
+        case rule::kMetaChecksum:
+        case rule::kSectionChecksum: return Status::kChecksumMismatch;
+        default: return Status::kCorrupt;
+    }
+}
+
+Result fail(uint32_t rule_id, std::string message) {
+    return Result::fail(status_for_rule(rule_id), rule_id, std::move(message));
+}
+
+std::string Result::describe() const {
+    if (ok()) return "ok";
+    return message + " [rule " + std::to_string(rule) + "]";
+}
+
+}  // namespace cwbvh

@@ -1,0 +1,37 @@
+// Per-section content checks used by validate.cpp. Each gets the payload of a
+// structurally valid entry (size == element_size * count, inside the file).
+#pragma once
+
+#include <cstdint>
+#include <cstring>
+#include <span>
+#include <string>
+
+#include "cwbvh/status.h"
+#include "cwbvh/validate.h"
+
+namespace cwbvh::detail {
+
+/// Element i of a payload, copied out (the buffer may be unaligned).
+template <class T>
+T load(std::span<const uint8_t> payload, uint64_t i) {
+    T v;
+    std::memcpy(&v, payload.data() + i * sizeof(T), sizeof(T));
+    return v;
+}
+
+std::string hex_byte(uint8_t b);
+
+uint64_t count_of(const FileLayout& layout, uint32_t type);  ///< 0 if absent
+
+Result check_nodes(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count);
+Result check_triangles(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count);
+Result check_source_map(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count);
+Result check_bounds(std::span<const uint8_t> payload);
+Result check_build_info(std::span<const uint8_t> payload);
+Result check_bvh2(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count);
+Result check_vertices(std::span<const uint8_t> payload, uint64_t count);
+Result check_indices(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count);
+Result check_source_names(std::span<const uint8_t> payload);
+
+}  // namespace cwbvh::detail

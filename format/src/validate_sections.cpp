@@ -1,0 +1,140 @@
+// Content rules of TRIS, PMAP, BNDS, BILD, BVH2, VERT, INDX, SRCN (52xx-59xx).
+#include <cmath>
+#include <vector>
+
+#include "validate_internal.h"
+
+namespace cwbvh::detail {
+namespace {
+
+using std::to_string;
+
+bool all_finite(const float* v, int n) {
+    for (int i = 0; i < n; ++i)
+        if (!std::isfinite(v[i])) return false;
+    return true;
+}
+
+Result element_error(uint32_t rule_id, const char* section, const char* element, uint64_t i, const std::string& what) {
+    return fail(rule_id, std::string("section ") + section + ": " + element + " " + to_string(i) + ": " + what);
+}
+
+/// Number of NUL-terminated names in SRCN (0 if absent).
+uint64_t source_name_count(const FileLayout& layout) {
+    const SectionEntry* e = layout.find(kSectionSourceNames);
+    if (e == nullptr) return 0;
+    uint64_t n = 0;
+    for (uint8_t b : layout.payload(*e)) n += b == 0;
+    return n;
+}
+
+}  // namespace
+
+Result check_triangles(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count) {
+    const SectionEntry* pmap = layout.find(kSectionSourceMap);
+    for (uint64_t i = 0; i < count; ++i) {
+        const auto t = load<TriangleRecord>(payload, i);
+        if (pmap != nullptr && t.prim >= pmap->element_count)
+            return element_error(rule::kTriPrim, "TRIS", "record", i, "prim " + to_string(t.prim) +
+                                     " is not below PMAP count " + to_string(pmap->element_count));
+        if (t.reserved1 != 0 || t.reserved2 != 0)
+            return element_error(rule::kTriReserved, "TRIS", "record", i, "reserved field is not 0");
+        if (!all_finite(t.v0, 3) || !all_finite(t.v1, 3) || !all_finite(t.v2, 3))
+            return element_error(rule::kTriNonFinite, "TRIS", "record", i, "vertex is not finite");
+    }
+    return Result::success();
+}
+
+Result check_source_map(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count) {
+    const SectionEntry* srcn = layout.find(kSectionSourceNames);
+    // Without SRCN (or with a broken one, which its own rule reports) inputs are not checked.
+    if (srcn == nullptr || srcn->size == 0 || layout.payload(*srcn).back() != 0) return Result::success();
+    const uint64_t names = source_name_count(layout);
+    for (uint64_t i = 0; i < count; ++i) {
+        const auto r = load<SourceRef>(payload, i);
+        if (r.input >= names)
+            return element_error(rule::kPmapInput, "PMAP", "entry", i, "input " + to_string(r.input) +
+                                     " is not below the " + to_string(names) + " names in SRCN");
+    }
+    return Result::success();
+}
+
+Result check_bounds(std::span<const uint8_t> payload) {
+    const auto b = load<SceneBounds>(payload, 0);
+    if (!all_finite(b.lo, 3) || !all_finite(b.hi, 3))
+        return fail(rule::kBoundsInvalid, "section BNDS: bounds are not finite");
+    for (int a = 0; a < 3; ++a)
+        if (b.lo[a] > b.hi[a])
+            return fail(rule::kBoundsInvalid, "section BNDS: lo > hi on axis " + to_string(a));
+    return Result::success();
+}
+
+Result check_build_info(std::span<const uint8_t> payload) {
+    const auto b = load<BuildInfo>(payload, 0);
+    for (uint8_t r : b.reserved)
+        if (r != 0) return fail(rule::kBuildReserved, "section BILD: reserved bytes are not 0");
+    return Result::success();
+}
+
+Result check_bvh2(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count) {
+    const uint64_t tri_count = count_of(layout, kSectionTriangles);
+    std::vector<uint8_t> has_parent(count, 0);
+    for (uint64_t i = 0; i < count; ++i) {
+        const auto n = load<Bvh2Node>(payload, i);
+        if (n.reserved[0] != 0 || n.reserved[1] != 0)
+            return element_error(rule::kBvh2Reserved, "BVH2", "node", i, "reserved field is not 0");
+        float box[12];
+        std::memcpy(box, &n, sizeof box);  // the 12 box floats are the first 48 bytes
+        if (!all_finite(box, 12))
+            return element_error(rule::kBvh2NonFinite, "BVH2", "node", i, "child box is not finite");
+        for (int c = 0; c < 2; ++c) {
+            const int32_t child = n.child[c];
+            if (child < 0) {
+                const uint64_t leaf = uint64_t(uint32_t(~child));
+                if (leaf >= tri_count)
+                    return element_error(rule::kBvh2Leaf, "BVH2", "node", i, "leaf ~child = " + to_string(leaf) +
+                                             " is not below TRIS count " + to_string(tri_count));
+                continue;
+            }
+            if (uint64_t(child) <= i || uint64_t(child) >= count)
+                return element_error(rule::kBvh2Child, "BVH2", "node", i, "child " + to_string(child) +
+                                         " is not in (" + to_string(i) + ", " + to_string(count) + ")");
+            if (has_parent[child] != 0)
+                return element_error(rule::kBvh2Parents, "BVH2", "node", uint64_t(child), "has two parents");
+            has_parent[child] = 1;
+        }
+    }
+    for (uint64_t j = 1; j < count; ++j)
+        if (has_parent[j] == 0) return element_error(rule::kBvh2Parents, "BVH2", "node", j, "has no parent");
+    return Result::success();
+}
+
+Result check_vertices(std::span<const uint8_t> payload, uint64_t count) {
+    for (uint64_t i = 0; i < count; ++i) {
+        float v[3];
+        std::memcpy(v, payload.data() + i * sizeof v, sizeof v);
+        if (!all_finite(v, 3)) return element_error(rule::kVertNonFinite, "VERT", "vertex", i, "not finite");
+    }
+    return Result::success();
+}
+
+Result check_indices(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count) {
+    const uint64_t verts = count_of(layout, kSectionVertices);
+    for (uint64_t i = 0; i < count; ++i) {
+        uint32_t idx[3];
+        std::memcpy(idx, payload.data() + i * sizeof idx, sizeof idx);
+        for (uint32_t k : idx)
+            if (k >= verts)
+                return element_error(rule::kIndexRange, "INDX", "triangle", i, "index " + to_string(k) +
+                                         " is not below VERT count " + to_string(verts));
+    }
+    return Result::success();
+}
+
+Result check_source_names(std::span<const uint8_t> payload) {
+    if (!payload.empty() && payload.back() != 0)
+        return fail(rule::kNamesTerminator, "section SRCN: last name is not NUL-terminated");
+    return Result::success();
+}
+
+}  // namespace cwbvh::detail

@@ -1,0 +1,92 @@
+/* C API of the cwbvh loader: open a .cwbvh file (mmap + validate) and get
+ * pointers to its sections. The layouts of the elements are those of
+ * spec/cwbvh-format.md (and format/include/cwbvh/format.h for C++).
+ *
+ * Errors are per handle, so the API is thread-safe without globals: like
+ * sqlite3_open, cwbvh_open hands back a handle even when it fails (unless
+ * memory runs out); cwbvh_error_message() then explains the failure, and the
+ * handle must still be closed. Different handles may be used from different
+ * threads; one handle is read-only after open and may be shared.
+ *
+ * A later cwbvh_device_upload(const cwbvh_file*, ...) builds on the section
+ * accessors below (pointer + byte size per section). */
+#ifndef CWBVH_CWBVH_H
+#define CWBVH_CWBVH_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum cwbvh_status {
+    CWBVH_OK = 0,
+    CWBVH_ERROR_IO = 1,                   /* cannot open/stat/map; directory; empty */
+    CWBVH_ERROR_NOT_CWBVH = 2,            /* wrong magic */
+    CWBVH_ERROR_UNSUPPORTED_VERSION = 3,  /* unknown major version */
+    CWBVH_ERROR_UNSUPPORTED = 4,          /* unknown required section */
+    CWBVH_ERROR_CORRUPT = 5,              /* violates the spec */
+    CWBVH_ERROR_CHECKSUM = 6,             /* checksum mismatch */
+    CWBVH_ERROR_INVALID_ARGUMENT = 7,     /* NULL path/out, bad struct_size */
+    CWBVH_ERROR_OUT_OF_MEMORY = 8
+} cwbvh_status;
+
+/* Section selection bits (same values as cwbvh::SectionMask). */
+#define CWBVH_SECTION_NODES (1u << 0)
+#define CWBVH_SECTION_TRIANGLES (1u << 1)
+#define CWBVH_SECTION_SOURCE_MAP (1u << 2)
+#define CWBVH_SECTION_BOUNDS (1u << 3)
+#define CWBVH_SECTION_BUILD_INFO (1u << 4)
+#define CWBVH_SECTION_BVH2 (1u << 5)
+#define CWBVH_SECTION_VERTICES (1u << 6)
+#define CWBVH_SECTION_INDICES (1u << 7)
+#define CWBVH_SECTION_SOURCE_NAMES (1u << 8)
+#define CWBVH_SECTION_ALL ((1u << 9) - 1u)
+
+typedef struct cwbvh_open_options {
+    uint32_t struct_size;      /* sizeof(cwbvh_open_options): lets the struct grow */
+    uint32_t verify_checksums; /* nonzero: verify payload checksums (default 1) */
+    uint32_t sections;         /* CWBVH_SECTION_* to validate and expose (default ALL) */
+    uint32_t reserved;         /* 0 */
+} cwbvh_open_options;
+
+typedef struct cwbvh_file cwbvh_file;
+
+/* Fills the defaults (checksums on, all sections). */
+void cwbvh_open_options_init(cwbvh_open_options* options);
+
+/* Opens and validates `path`. options may be NULL (defaults). On return *out
+ * is a handle (also on failure, with the error) or NULL (out of memory or
+ * invalid argument). Always cwbvh_close(*out). */
+cwbvh_status cwbvh_open(const char* path, const cwbvh_open_options* options, cwbvh_file** out);
+
+/* The status of the open, its validation rule ID (0 if none), and a one-line
+ * message naming the file, the section and what is wrong ("" on success).
+ * The string lives as long as the handle. file may be NULL. */
+cwbvh_status cwbvh_status_of(const cwbvh_file* file);
+uint32_t cwbvh_error_rule(const cwbvh_file* file);
+const char* cwbvh_error_message(const cwbvh_file* file);
+const char* cwbvh_status_string(cwbvh_status status);
+
+/* Section accessors: element pointer and count; NULL/0 if the section is
+ * absent, not selected, or the open failed. Pointers live as long as the handle. */
+const void* cwbvh_nodes(const cwbvh_file* file, uint64_t* count);        /* 80-byte nodes */
+const void* cwbvh_triangles(const cwbvh_file* file, uint64_t* count);    /* 48-byte records */
+const void* cwbvh_source_map(const cwbvh_file* file, uint64_t* count);   /* 16-byte refs */
+const float* cwbvh_bounds(const cwbvh_file* file);                       /* lo[3], hi[3] */
+const void* cwbvh_build_info(const cwbvh_file* file);                    /* 256 bytes */
+const void* cwbvh_bvh2(const cwbvh_file* file, uint64_t* count);         /* 64-byte nodes */
+const float* cwbvh_vertices(const cwbvh_file* file, uint64_t* count);    /* count vertices x 3 */
+const uint32_t* cwbvh_indices(const cwbvh_file* file, uint64_t* count);  /* count triangles x 3 */
+const char* cwbvh_source_names(const cwbvh_file* file, uint64_t* size);  /* NUL-separated, size bytes */
+/* Any section by FourCC (e.g. 0x45444F4E for "NODE"): bytes and size. */
+const void* cwbvh_section(const cwbvh_file* file, uint32_t type, uint64_t* size);
+
+void cwbvh_close(cwbvh_file* file);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* CWBVH_CWBVH_H */

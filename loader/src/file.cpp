@@ -1,0 +1,92 @@
+#include "cwbvh/loader.h"
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
+namespace cwbvh {
+namespace {
+
+Result io_error(uint32_t rule_id, const std::string& path, const std::string& what) {
+    return fail(rule_id, path + ": " + what);
+}
+
+/// Closes the descriptor on every path out of open().
+struct Fd {
+    int fd;
+    ~Fd() {
+        if (fd >= 0) ::close(fd);
+    }
+};
+
+}  // namespace
+
+Expected<File> File::open(const std::string& path, const OpenOptions& options) {
+    Fd fd{::open(path.c_str(), O_RDONLY | O_CLOEXEC)};
+    if (fd.fd < 0) return io_error(rule::kOpenFailed, path, std::string("cannot open: ") + std::strerror(errno));
+    struct stat st {};
+    if (::fstat(fd.fd, &st) != 0)
+        return io_error(rule::kOpenFailed, path, std::string("cannot stat: ") + std::strerror(errno));
+    if (S_ISDIR(st.st_mode)) return io_error(rule::kNotRegularFile, path, "is a directory, not a .cwbvh file");
+    if (!S_ISREG(st.st_mode)) return io_error(rule::kNotRegularFile, path, "is not a regular file");
+    if (st.st_size == 0) return io_error(rule::kEmptyFile, path, "is empty (0 bytes)");
+    if (uint64_t(st.st_size) > uint64_t(SIZE_MAX))
+        return io_error(rule::kMapFailed, path, "is too large to map");
+
+    File file;
+    file.path_ = path;
+    file.map_size_ = size_t(st.st_size);
+    void* map = ::mmap(nullptr, file.map_size_, PROT_READ, MAP_PRIVATE, fd.fd, 0);
+    if (map == MAP_FAILED) return io_error(rule::kMapFailed, path, std::string("cannot mmap: ") + std::strerror(errno));
+    file.map_ = map;
+    // Note: if another process truncates the file while it is mapped, reads
+    // past the new end raise SIGBUS; writers replace files by rename instead.
+
+    ValidateOptions vo;
+    vo.verify_checksums = options.verify_checksums;
+    vo.sections = options.sections;
+    const std::span<const uint8_t> bytes(static_cast<const uint8_t*>(map), file.map_size_);
+    if (Result r = validate(bytes, vo, &file.layout_); !r.ok()) {
+        r.message = path + ": " + r.message;
+        return r;
+    }
+    file.sections_ = options.sections;
+    return file;
+}
+
+std::span<const uint8_t> File::section(uint32_t type) const {
+    const SectionInfo* info = find_section_info(type);
+    if (info == nullptr || (sections_ & info->mask) == 0) return {};
+    const SectionEntry* e = layout_.find(type);
+    return e != nullptr ? layout_.payload(*e) : std::span<const uint8_t>{};
+}
+
+File::File(File&& other) noexcept { *this = std::move(other); }
+
+File& File::operator=(File&& other) noexcept {
+    if (this != &other) {
+        release();
+        path_ = std::move(other.path_);
+        map_ = std::exchange(other.map_, nullptr);
+        map_size_ = std::exchange(other.map_size_, 0);
+        sections_ = std::exchange(other.sections_, 0);
+        layout_ = std::move(other.layout_);
+        other.layout_ = FileLayout{};
+    }
+    return *this;
+}
+
+File::~File() { release(); }
+
+void File::release() {
+    if (map_ != nullptr) ::munmap(map_, map_size_);
+    map_ = nullptr;
+    map_size_ = 0;
+    layout_ = FileLayout{};
+}
+
+}  // namespace cwbvh

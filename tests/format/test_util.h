@@ -1,0 +1,98 @@
+// Helpers shared by the format tests: a small valid file in memory, and
+// "reseal" to recompute checksums after a deliberate edit, so a test reaches
+// the rule it targets instead of stopping at the checksum.
+#pragma once
+
+#include <cstdint>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "cwbvh/checksum.h"
+#include "cwbvh/format.h"
+#include "cwbvh/scene_data.h"
+#include "cwbvh/synthetic.h"
+#include "cwbvh/validate.h"
+#include "cwbvh/writer.h"
+
+namespace cwbvh::test {
+
+inline std::vector<uint8_t> file_bytes(const SceneData& scene) {
+    Writer w;
+    add_scene_sections(w, scene);
+    std::vector<uint8_t> out;
+    const Result r = w.to_bytes(out);
+    if (!r.ok()) throw std::runtime_error(r.describe());
+    return out;
+}
+
+inline std::vector<uint8_t> synthetic_file(uint32_t triangles = 40) {
+    SyntheticOptions o;
+    o.triangles = triangles;
+    return file_bytes(make_synthetic_scene(o));
+}
+
+inline FileHeader header_of(const std::vector<uint8_t>& f) {
+    FileHeader h;
+    std::memcpy(&h, f.data(), sizeof h);
+    return h;
+}
+inline void set_header(std::vector<uint8_t>& f, const FileHeader& h) { std::memcpy(f.data(), &h, sizeof h); }
+
+inline size_t entry_offset(const std::vector<uint8_t>& f, uint32_t index) {
+    return header_of(f).section_table_offset + index * sizeof(SectionEntry);
+}
+inline SectionEntry entry(const std::vector<uint8_t>& f, uint32_t index) {
+    SectionEntry e;
+    std::memcpy(&e, f.data() + entry_offset(f, index), sizeof e);
+    return e;
+}
+inline void set_entry(std::vector<uint8_t>& f, uint32_t index, const SectionEntry& e) {
+    std::memcpy(f.data() + entry_offset(f, index), &e, sizeof e);
+}
+/// Index in the table of a section type (the file must have it).
+inline uint32_t find_entry(const std::vector<uint8_t>& f, uint32_t type) {
+    for (uint32_t i = 0; i < header_of(f).section_count; ++i)
+        if (entry(f, i).type == type) return i;
+    throw std::runtime_error("section not found");
+}
+
+/// Recomputes every in-range payload checksum and the meta checksum.
+inline void reseal(std::vector<uint8_t>& f) {
+    FileHeader h = header_of(f);
+    const uint64_t table = h.section_table_offset;
+    if (table > f.size() || uint64_t(h.section_count) * sizeof(SectionEntry) > f.size() - table) return;
+    for (uint32_t i = 0; i < h.section_count; ++i) {
+        SectionEntry e = entry(f, i);
+        if (e.offset <= f.size() && e.size <= f.size() - e.offset) {
+            e.checksum = payload_checksum(f.data() + e.offset, e.size);
+            set_entry(f, i, e);
+        }
+    }
+    h.meta_checksum = meta_checksum(h, f.data() + h.section_table_offset, h.section_count * sizeof(SectionEntry));
+    set_header(f, h);
+}
+
+/// Reads element `i` of a section, lets `edit` change it, writes it back, reseals.
+template <class T, class F>
+void edit_element(std::vector<uint8_t>& f, uint32_t type, uint64_t i, F edit) {
+    const SectionEntry e = entry(f, find_entry(f, type));
+    T v;
+    std::memcpy(&v, f.data() + e.offset + i * sizeof(T), sizeof v);
+    edit(v);
+    std::memcpy(f.data() + e.offset + i * sizeof(T), &v, sizeof v);
+    reseal(f);
+}
+
+inline Result check(const std::vector<uint8_t>& f, bool checksums = true) {
+    ValidateOptions o;
+    o.verify_checksums = checksums;
+    return validate(f, o);
+}
+
+/// Writes bytes to a file under the test temp dir; returns the path.
+std::string write_temp(const std::string& name, const std::vector<uint8_t>& bytes);
+std::string temp_dir();
+
+}  // namespace cwbvh::test

@@ -1,0 +1,301 @@
+// Validator: one test per rule family, each on a deliberately edited file.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "cwbvh/node_decode.h"
+#include "format/test_util.h"
+
+namespace cwbvh {
+namespace {
+
+using test::check;
+using test::entry;
+using test::find_entry;
+using test::header_of;
+using test::reseal;
+using test::set_entry;
+using test::set_header;
+
+#define EXPECT_RULE(result, id)                                                   \
+    do {                                                                          \
+        const Result r_ = (result);                                               \
+        EXPECT_EQ(r_.rule, uint32_t(id)) << r_.describe();                        \
+        EXPECT_FALSE(r_.message.empty());                                         \
+        EXPECT_EQ(r_.message.find('\n'), std::string::npos) << "one line";        \
+    } while (0)
+
+TEST(Validate, AcceptsSyntheticFile) {
+    const Result r = check(test::synthetic_file());
+    EXPECT_TRUE(r.ok()) << r.describe();
+}
+
+TEST(Validate, IdentityAndVersion) {
+    std::vector<uint8_t> f = test::synthetic_file();
+    EXPECT_RULE(validate(std::span<const uint8_t>()), rule::kTruncatedHeader);
+    EXPECT_RULE(validate(std::span<const uint8_t>(f.data(), 5)), rule::kTruncatedHeader);
+    EXPECT_RULE(validate(std::span<const uint8_t>(f.data(), 63)), rule::kTruncatedHeader);
+    const std::string text = "hello, this is a text file\n";
+    EXPECT_RULE(validate({reinterpret_cast<const uint8_t*>(text.data()), text.size()}), rule::kBadMagic);
+    {
+        auto g = f;
+        g[0] = 0x2B;  // 7-bit transfer
+        const Result r = check(g);
+        EXPECT_EQ(r.status, Status::kNotCwbvh);
+        EXPECT_NE(r.message.find("7-bit"), std::string::npos) << r.message;
+    }
+    {
+        auto g = f;
+        g.erase(g.begin() + 7);  // CR LF -> LF
+        EXPECT_NE(check(g).message.find("CR LF"), std::string::npos);
+    }
+    {
+        auto g = f;
+        FileHeader h = header_of(g);
+        h.version_major = 2;
+        set_header(g, h);
+        reseal(g);
+        const Result r = check(g);
+        EXPECT_EQ(r.status, Status::kUnsupportedVersion);
+        EXPECT_RULE(r, rule::kUnsupportedMajor);
+    }
+    {
+        auto g = f;
+        FileHeader h = header_of(g);
+        h.version_minor = 7;  // newer minor: accepted
+        set_header(g, h);
+        reseal(g);
+        EXPECT_TRUE(check(g).ok()) << check(g).describe();
+    }
+}
+
+TEST(Validate, Header) {
+    const std::vector<uint8_t> f = test::synthetic_file();
+    auto edit = [&](auto fn) {
+        auto g = f;
+        FileHeader h = header_of(g);
+        fn(h);
+        set_header(g, h);
+        reseal(g);
+        return g;
+    };
+    EXPECT_RULE(check(edit([](FileHeader& h) { h.header_size = 80; })), rule::kHeaderSize);
+    EXPECT_RULE(check(edit([](FileHeader& h) { h.file_size += 1; })), rule::kFileSize);
+    EXPECT_RULE(check(edit([](FileHeader& h) { h.section_table_offset = 68; })), rule::kTableAlignment);
+    EXPECT_RULE(check(edit([](FileHeader& h) { h.section_table_offset = 0; })), rule::kTableAlignment);
+    EXPECT_RULE(check(edit([](FileHeader& h) { h.section_count = 0x7FFFFFFF; })), rule::kTableOutsideFile);
+    EXPECT_RULE(check(edit([](FileHeader& h) { h.section_table_offset = ~uint64_t(7); })), rule::kTableOutsideFile);
+    EXPECT_RULE(check(edit([](FileHeader& h) { h.flags = 1; })), rule::kHeaderFlags);
+    EXPECT_RULE(check(edit([](FileHeader& h) { h.reserved1 = 1; })), rule::kHeaderReserved);
+    auto g = f;
+    g[20] ^= 1;  // section_count, not resealed
+    EXPECT_EQ(check(g).status, Status::kChecksumMismatch);
+    auto trunc = f;
+    trunc.resize(f.size() - 1);
+    EXPECT_RULE(check(trunc), rule::kFileSize);
+    auto longer = f;
+    longer.push_back(0);
+    EXPECT_RULE(check(longer), rule::kFileSize);
+}
+
+TEST(Validate, SectionTable) {
+    const std::vector<uint8_t> f = test::synthetic_file();
+    const uint32_t nodes = find_entry(f, kSectionNodes);
+    const uint32_t tris = find_entry(f, kSectionTriangles);
+    auto edit = [&](uint32_t index, auto fn) {
+        auto g = f;
+        SectionEntry e = entry(g, index);
+        fn(e);
+        set_entry(g, index, e);
+        reseal(g);
+        return g;
+    };
+    EXPECT_RULE(check(edit(nodes, [](SectionEntry& e) { e.flags |= 4; })), rule::kSectionFlags);
+    EXPECT_RULE(check(edit(nodes, [](SectionEntry& e) { e.reserved = 1; })), rule::kSectionReserved);
+    EXPECT_RULE(check(edit(nodes, [](SectionEntry& e) { e.offset += 8; })), rule::kSectionAlignment);
+    EXPECT_RULE(check(edit(nodes, [](SectionEntry& e) { e.offset = uint64_t(1) << 62; })), rule::kSectionOutsideFile);
+    EXPECT_RULE(check(edit(nodes, [&](SectionEntry& e) { e.offset = f.size() / 64 * 64; })), rule::kSectionOutsideFile);
+    EXPECT_RULE(check(edit(nodes, [](SectionEntry& e) { e.offset = 0; })), rule::kSectionOverlapsHeader);
+    EXPECT_RULE(check(edit(tris, [&](SectionEntry& e) { e.offset = entry(f, nodes).offset; })), rule::kSectionOverlap);
+    // count * size overflows 64 bits: size cannot match.
+    EXPECT_RULE(check(edit(nodes, [](SectionEntry& e) { e.element_count = (uint64_t(1) << 62) + 1; e.size = 80; })),
+                rule::kSectionSize);
+    EXPECT_RULE(check(edit(nodes, [](SectionEntry& e) { e.size += 80; })), rule::kSectionSize);
+    EXPECT_RULE(check(edit(nodes, [](SectionEntry& e) { e.element_size = 40; e.element_count *= 2; })),
+                rule::kElementSize);
+    EXPECT_RULE(check(edit(find_entry(f, kSectionBvh2), [&](SectionEntry& e) { e = entry(f, tris); })),
+                rule::kDuplicateSection);
+    EXPECT_RULE(check(edit(find_entry(f, kSectionBounds), [](SectionEntry& e) { e.type = fourcc('Z', 'Z', 'Z', 'Z'); e.flags = 0; })),
+                rule::kMissingSection);
+    // Unknown required section: rejected; unknown optional: skipped.
+    const uint32_t bvh2 = find_entry(f, kSectionBvh2);
+    const Result req = check(edit(bvh2, [](SectionEntry& e) { e.type = fourcc('X', 'T', 'R', 'A'); e.flags = 1; }));
+    EXPECT_RULE(req, rule::kUnknownRequiredSection);
+    EXPECT_EQ(req.status, Status::kUnsupported);
+    const Result opt = check(edit(bvh2, [](SectionEntry& e) { e.type = fourcc('X', 'T', 'R', 'A'); e.flags = 0; }));
+    EXPECT_TRUE(opt.ok()) << opt.describe();
+    // Padding must be zero.
+    auto g = f;
+    const SectionEntry first = entry(g, 0);
+    ASSERT_GT(first.offset, 64 + 9 * 48u);
+    g[first.offset - 1] = 1;
+    reseal(g);
+    EXPECT_RULE(check(g), rule::kNonZeroPadding);
+    // Payload checksum.
+    auto p = f;
+    p[entry(p, nodes).offset + 1] ^= 0x40;
+    EXPECT_RULE(check(p), rule::kSectionChecksum);
+}
+
+TEST(Validate, Counts) {
+    const std::vector<uint8_t> f = test::synthetic_file();
+    auto edit_count = [&](uint32_t type, uint64_t count) {
+        auto g = f;
+        const uint32_t i = find_entry(g, type);
+        SectionEntry e = entry(g, i);
+        e.element_count = count;
+        e.size = count * e.element_size;
+        set_entry(g, i, e);
+        reseal(g);
+        return g;
+    };
+    EXPECT_RULE(check(edit_count(kSectionNodes, 0)), rule::kElementCount);
+    EXPECT_RULE(check(edit_count(kSectionBounds, 0)), rule::kElementCount);
+    EXPECT_RULE(check(edit_count(kSectionIndices, 3)), rule::kElementCount);
+}
+
+TEST(Validate, NodeContent) {
+    const std::vector<uint8_t> f = test::synthetic_file(300);  // three levels
+    auto node = [&](uint64_t i, auto fn) {
+        auto g = f;
+        test::edit_element<CwbvhNode>(g, kSectionNodes, i, fn);
+        return g;
+    };
+    // Find a root slot with an internal child and one with a leaf.
+    const SectionEntry nodes = entry(f, find_entry(f, kSectionNodes));
+    auto read_node = [&](uint64_t i) {
+        CwbvhNode n;
+        std::memcpy(&n, f.data() + nodes.offset + i * sizeof n, sizeof n);
+        return n;
+    };
+    const CwbvhNode root = read_node(0);
+    int internal = -1, leaf = -1, empty = -1;
+    uint64_t empty_node = 0;
+    for (int s = 0; s < 8; ++s) {
+        if (meta_is_internal(root.meta[s]) && internal < 0) internal = s;
+        if (meta_is_leaf(root.meta[s]) && leaf < 0) leaf = s;
+    }
+    for (uint64_t i = 0; i < nodes.element_count && empty < 0; ++i)
+        for (int s = 0; s < 8 && empty < 0; ++s)
+            if (meta_is_empty(read_node(i).meta[s])) empty = s, empty_node = i;
+    ASSERT_GE(internal, 0);
+    ASSERT_GE(leaf, 0);
+    ASSERT_GE(empty, 0);
+    EXPECT_RULE(check(node(0, [](CwbvhNode& n) { n.e[1] = 0; })), rule::kNodeExponent);
+    EXPECT_RULE(check(node(0, [](CwbvhNode& n) { n.e[2] = 255; })), rule::kNodeExponent);
+    EXPECT_RULE(check(node(0, [&](CwbvhNode& n) { n.meta[leaf] = 0x40 | 1; })), rule::kNodeMeta);   // unary 0b010
+    EXPECT_RULE(check(node(0, [&](CwbvhNode& n) { n.meta[leaf] = make_meta_leaf(3, 22); })), rule::kNodeMeta);
+    EXPECT_RULE(check(node(0, [&](CwbvhNode& n) { n.meta[internal] = make_meta_internal((internal + 1) % 8); })),
+                rule::kNodeMeta);
+    EXPECT_RULE(check(node(0, [&](CwbvhNode& n) { n.imask ^= uint8_t(1u << internal); })), rule::kNodeImask);
+    EXPECT_RULE(check(node(0, [&](CwbvhNode& n) { n.imask |= uint8_t(1u << leaf); })), rule::kNodeImask);
+    EXPECT_RULE(check(node(0, [](CwbvhNode& n) { n.child_base = 0; })), rule::kNodeChildOrder);
+    EXPECT_RULE(check(node(0, [](CwbvhNode& n) { n.child_base = 0xFFFFFFF0u; })), rule::kNodeChildRange);
+    EXPECT_RULE(check(node(0, [](CwbvhNode& n) { n.child_base += 1; })), rule::kNodeParents);
+    EXPECT_RULE(check(node(0, [](CwbvhNode& n) { n.tri_base = 0xFFFFFFFFu; })), rule::kNodeLeafRange);
+    EXPECT_RULE(check(node(0, [](CwbvhNode& n) { n.tri_base += 1; })), rule::kNodeTriangleUse);
+    EXPECT_RULE(check(node(0, [&](CwbvhNode& n) { n.meta[leaf] = make_meta_leaf(meta_leaf_count(n.meta[leaf]), 20); })),
+                rule::kNodeLeafLayout);
+    EXPECT_RULE(check(node(0, [&](CwbvhNode& n) { n.q_lo[0][leaf] = 255; n.q_hi[0][leaf] = 1; })),
+                rule::kNodePlaneOrder);
+    EXPECT_RULE(check(node(empty_node, [&](CwbvhNode& n) { n.q_hi[2][empty] = 1; })), rule::kNodeEmptySlot);
+    EXPECT_RULE(check(node(0, [](CwbvhNode& n) { n.p[0] = INFINITY; })), rule::kNodeNonFinite);
+    EXPECT_RULE(check(node(0, [&](CwbvhNode& n) { n.e[0] = 254; n.q_hi[0][leaf] = 255; n.p[0] = 3e38f; })),
+                rule::kNodeNonFinite);
+}
+
+TEST(Validate, OtherSectionContent) {
+    const std::vector<uint8_t> f = test::synthetic_file();
+    auto g = f;
+    test::edit_element<TriangleRecord>(g, kSectionTriangles, 3, [](TriangleRecord& t) { t.prim = 40; });
+    EXPECT_RULE(check(g), rule::kTriPrim);
+    g = f;
+    test::edit_element<TriangleRecord>(g, kSectionTriangles, 3, [](TriangleRecord& t) { t.reserved2 = 1; });
+    EXPECT_RULE(check(g), rule::kTriReserved);
+    g = f;
+    test::edit_element<TriangleRecord>(g, kSectionTriangles, 3, [](TriangleRecord& t) { t.v1[1] = NAN; });
+    EXPECT_RULE(check(g), rule::kTriNonFinite);
+    g = f;
+    test::edit_element<SourceRef>(g, kSectionSourceMap, 2, [](SourceRef& r) { r.input = 1; });
+    EXPECT_RULE(check(g), rule::kPmapInput);
+    g = f;
+    test::edit_element<SceneBounds>(g, kSectionBounds, 0, [](SceneBounds& b) { b.lo[0] = b.hi[0] + 1; });
+    EXPECT_RULE(check(g), rule::kBoundsInvalid);
+    g = f;
+    test::edit_element<BuildInfo>(g, kSectionBuildInfo, 0, [](BuildInfo& b) { b.reserved[100] = 1; });
+    EXPECT_RULE(check(g), rule::kBuildReserved);
+    g = f;
+    test::edit_element<Bvh2Node>(g, kSectionBvh2, 0, [](Bvh2Node& n) { n.child[0] = 0; });
+    EXPECT_RULE(check(g), rule::kBvh2Child);
+    g = f;
+    test::edit_element<Bvh2Node>(g, kSectionBvh2, 0, [](Bvh2Node& n) { n.child[1] = n.child[0]; });
+    EXPECT_RULE(check(g), rule::kBvh2Parents);
+    g = f;
+    test::edit_element<Bvh2Node>(g, kSectionBvh2, 0, [](Bvh2Node& n) { n.child[0] = ~1000; });
+    EXPECT_RULE(check(g), rule::kBvh2Leaf);
+    g = f;
+    test::edit_element<Bvh2Node>(g, kSectionBvh2, 0, [](Bvh2Node& n) { n.reserved[1] = 1; });
+    EXPECT_RULE(check(g), rule::kBvh2Reserved);
+    g = f;
+    test::edit_element<Bvh2Node>(g, kSectionBvh2, 0, [](Bvh2Node& n) { n.c1_hi_y = -INFINITY; });
+    EXPECT_RULE(check(g), rule::kBvh2NonFinite);
+    g = f;
+    test::edit_element<float>(g, kSectionVertices, 7, [](float& v) { v = NAN; });
+    EXPECT_RULE(check(g), rule::kVertNonFinite);
+    g = f;
+    test::edit_element<uint32_t>(g, kSectionIndices, 5, [](uint32_t& i) { i = 120; });
+    EXPECT_RULE(check(g), rule::kIndexRange);
+    g = f;
+    test::edit_element<char>(g, kSectionSourceNames, 9, [](char& c) { c = 'x'; });
+    EXPECT_RULE(check(g), rule::kNamesTerminator);
+}
+
+TEST(Validate, WithoutChecksumsStructureIsStillChecked) {
+    const std::vector<uint8_t> f = test::synthetic_file();
+    const SectionEntry tris = entry(f, find_entry(f, kSectionTriangles));
+    auto g = f;
+    g[tris.offset + 16 + 2] ^= 0x01;  // low mantissa bit of v1.x of record 0: still a finite float
+    EXPECT_RULE(check(g, true), rule::kSectionChecksum);
+    EXPECT_TRUE(check(g, false).ok()) << check(g, false).describe();
+    auto h = f;
+    const SectionEntry nodes = entry(h, find_entry(h, kSectionNodes));
+    h[nodes.offset + 16] ^= 0x05;  // root child_base
+    EXPECT_RULE(check(h, true), rule::kSectionChecksum);
+    const Result r = check(h, false);
+    EXPECT_FALSE(r.ok());
+    EXPECT_GE(r.rule, 5100u);
+    EXPECT_LT(r.rule, 5200u);
+    // The meta checksum is always verified.
+    auto m = f;
+    m[64 + 8] ^= 1;  // first entry's offset
+    EXPECT_RULE(check(m, false), rule::kMetaChecksum);
+}
+
+TEST(Validate, SectionSelectionSkipsUnrequestedContent) {
+    std::vector<uint8_t> f = test::synthetic_file();
+    test::edit_element<uint32_t>(f, kSectionIndices, 5, [](uint32_t& i) { i = 999; });
+    ValidateOptions o;
+    o.sections = kMaskNodes | kMaskTriangles;
+    EXPECT_TRUE(validate(f, o).ok());
+    EXPECT_RULE(validate(f), rule::kIndexRange);
+    // Table rules still run on every entry.
+    auto g = f;
+    SectionEntry e = entry(g, find_entry(g, kSectionIndices));
+    e.offset += 64 * 1000;
+    set_entry(g, find_entry(g, kSectionIndices), e);
+    reseal(g);
+    EXPECT_RULE(validate(g, o), rule::kSectionOutsideFile);
+}
+
+}  // namespace
+}  // namespace cwbvh
