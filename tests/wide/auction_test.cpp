@@ -1,0 +1,136 @@
+// Slot assignment tests: auction (Bertsekas 1992) against brute force over all
+// 8! permutations; octant cost table (Ylitie et al. 2017, 3.2).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <numeric>
+#include <random>
+
+#include "cwbvh/compiler/auction.h"
+#include "cwbvh/compiler/collapse.h"
+#include "wide/wide_test_util.h"
+
+namespace cwbvh::compiler {
+namespace {
+
+template <class T>
+T brute_force_max(const std::array<std::array<T, 8>, 8>& b) {
+    std::array<int, 8> perm;
+    std::iota(perm.begin(), perm.end(), 0);
+    T best = 0;
+    bool first = true;
+    do {
+        T sum = 0;
+        for (int i = 0; i < 8; ++i) sum += b[i][perm[i]];
+        if (first || sum > best) best = sum;
+        first = false;
+    } while (std::next_permutation(perm.begin(), perm.end()));
+    return best;
+}
+
+bool is_permutation(const std::array<int, 8>& a) {
+    std::array<int, 8> s = a;
+    std::sort(s.begin(), s.end());
+    for (int i = 0; i < 8; ++i)
+        if (s[i] != i) return false;
+    return true;
+}
+
+TEST(Auction, IntegerTablesAreSolvedExactly) {
+    std::mt19937 rng(1);
+    for (int t = 0; t < 200; ++t) {
+        std::array<std::array<int64_t, 8>, 8> b{};
+        const int64_t range = t % 4 == 0 ? 3 : t % 4 == 1 ? 100 : t % 4 == 2 ? 1'000'000 : (int64_t(1) << 40);
+        for (auto& row : b)
+            for (auto& x : row) x = int64_t(rng() % uint64_t(2 * range + 1)) - range;
+        std::array<int, 8> obj{};
+        auction_assign(b, obj);
+        ASSERT_TRUE(is_permutation(obj));
+        int64_t sum = 0;
+        for (int i = 0; i < 8; ++i) sum += b[i][obj[i]];
+        EXPECT_EQ(sum, brute_force_max(b)) << "table " << t;
+    }
+}
+
+TEST(Auction, RealCostTablesMatchBruteForce) {
+    std::mt19937 rng(2);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    for (int t = 0; t < 200; ++t) {
+        std::array<std::array<double, 8>, 8> cost{}, neg{};
+        const int children = 1 + t % 8;  // partially filled nodes: empty rows cost 0
+        for (int i = 0; i < children; ++i)
+            for (int j = 0; j < 8; ++j) cost[i][j] = u(rng) * (t % 3 == 0 ? 1e-20 : 1e6);
+        for (int i = 0; i < 8; ++i)
+            for (int j = 0; j < 8; ++j) neg[i][j] = -cost[i][j];
+        std::array<int, 8> slot{};
+        assign_min_cost(cost, slot);
+        ASSERT_TRUE(is_permutation(slot));
+        double sum = 0, max_abs = 0;
+        for (int i = 0; i < 8; ++i) sum += cost[i][slot[i]];
+        for (const auto& r : cost)
+            for (double c : r) max_abs = std::max(max_abs, std::fabs(c));
+        EXPECT_NEAR(sum, -brute_force_max(neg), 16 * max_abs * 0x1p-30) << t;
+    }
+}
+
+TEST(Auction, Deterministic) {
+    std::array<std::array<int64_t, 8>, 8> b{};  // all ties
+    std::array<int, 8> a{}, c{};
+    auction_assign(b, a);
+    auction_assign(b, c);
+    EXPECT_EQ(a, c);
+    EXPECT_TRUE(is_permutation(a));
+}
+
+TEST(Auction, CornerChildrenGoToTheirOctantSlots) {
+    // Children at the 8 corners of the parent: the child at the low corner
+    // (-,-,-) has the smallest dot with d_0 = (+1,+1,+1) and goes to slot 0;
+    // the corner with x high is traversed first by rays with x < 0 (bit 2).
+    WideBvh wide;
+    wide.nodes.resize(1);
+    WideNode& n = wide.nodes[0];
+    n.box.lo = {0, 0, 0};
+    n.box.hi = {2, 2, 2};
+    for (int c = 0; c < 8; ++c) {
+        const int corner = 7 - c;  // fill in reverse to force a permutation
+        WideChild& ch = n.slots[c];
+        ch.kind = WideChild::kLeaf;
+        ch.ref_count = 1;
+        ch.first_ref = uint32_t(corner);  // remember which corner
+        for (int a = 0; a < 3; ++a) {
+            const float lo = (corner >> (2 - a) & 1) ? 1.0f : 0.0f;
+            ch.box.lo[a] = lo;
+            ch.box.hi[a] = lo + 1.0f;
+        }
+    }
+    assign_slots(wide);
+    for (int s = 0; s < 8; ++s) EXPECT_EQ(n.slots[s].first_ref, uint32_t(s));
+}
+
+TEST(Auction, AssignSlotsKeepsChildrenAndIsDeterministic) {
+    const Scene scene = wide_test::random_scene(3000, 21);
+    const BinaryBvh binary = wide_test::build_binary(scene);
+    WideBvh wide;
+    std::string error;
+    ASSERT_TRUE(collapse_wide(binary, CollapseConfig{}, wide, error)) << error;
+    WideBvh a = wide, b = wide;
+    assign_slots(a);
+    assign_slots(b);
+    double before = 0, after = 0;
+    for (size_t i = 0; i < wide.nodes.size(); ++i) {
+        EXPECT_EQ(a.nodes[i].child_count(), wide.nodes[i].child_count());
+        const auto ct = slot_cost_table(wide.nodes[i]);
+        for (int s = 0; s < 8; ++s) {
+            EXPECT_EQ(a.nodes[i].slots[s].kind, b.nodes[i].slots[s].kind);
+            EXPECT_EQ(a.nodes[i].slots[s].node, b.nodes[i].slots[s].node);
+            EXPECT_EQ(a.nodes[i].slots[s].first_ref, b.nodes[i].slots[s].first_ref);
+            before += ct[s][s];
+        }
+        const auto ca = slot_cost_table(a.nodes[i]);
+        for (int s = 0; s < 8; ++s) after += ca[s][s];
+    }
+    EXPECT_LE(after, before);
+}
+
+}  // namespace
+}  // namespace cwbvh::compiler
