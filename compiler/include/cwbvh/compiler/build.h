@@ -1,0 +1,83 @@
+// Binary BVH builders of cwbvhc: Scene -> BinaryBvh (one triangle reference
+// per leaf, nodes in canonical depth-first order, root = node 0).
+//   build_sbvh   : own SBVH (Stich, Friedrich, Dietrich 2009), oneTBB-parallel,
+//                  bit-identical output for any thread count.
+//   build_embree : Embree 3 rtcBuildBVH (RTC_BUILD_QUALITY_HIGH, spatial splits
+//                  through our triangle-clipping splitPrimitive callback), run
+//                  single-threaded so that its output is deterministic too.
+// Host-only.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "cwbvh/compiler/model.h"
+
+namespace cwbvh::compiler {
+
+struct SbvhConfig {
+    /// Stich et al. 2009, section 4.5: spatial splits are only tried at a node
+    /// when the surface area of the overlap of the best object split's two
+    /// children, divided by the root's surface area, exceeds alpha.
+    /// 1 = never (plain SAH BVH), 0 = always try.
+    float split_alpha = 1e-5f;
+    /// Binary SAH constants (C_t, C_i). Because every leaf holds exactly one
+    /// reference (the collapse needs it), a node is always split and the split
+    /// choice minimises A_L*N_L + A_R*N_R whatever these are; they are passed to
+    /// Embree (traversalCost/intersectionCost) and kept for documentation.
+    float cost_traversal = 1.0f, cost_intersect = 1.0f;
+    /// Spatial split bins per axis (Stich et al. 2009, section 4.3). Object
+    /// splits do a full SAH sweep over centroid-sorted references for nodes of
+    /// up to kSweepMaxRefs references and use kObjectBins centroid bins above.
+    int bins = 32;
+    /// Reference budget: references <= (1 + x) * triangles. The budget is
+    /// handed down the tree deterministically (each child gets a share of the
+    /// remaining duplicates proportional to its reference count); where a
+    /// subtree's share is exhausted only object splits are made there.
+    double max_reference_growth = 1.0;
+    /// 0 = TBB default; the output does NOT depend on it.
+    int threads = 0;
+};
+
+[[nodiscard]] bool build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out,
+                              std::string& error);
+[[nodiscard]] bool build_embree(const Scene& scene, const SbvhConfig& config, BinaryBvh& out,
+                                std::string& error);
+
+/// Spec formula: sum over internal nodes C_node*A(n)/A(root) + sum over leaves
+/// C_prim*A(leaf)/A(root), A = surface area. Returns 0 for an empty tree.
+double sah_cost_binary(const BinaryBvh& bvh, float c_node = 1.0f, float c_prim = 0.3f);
+
+// ---------------------------------------------------------------------------
+// Helpers shared by both builders and used by tests.
+// ---------------------------------------------------------------------------
+
+/// Conservative float box of the part of triangle `tri` with
+/// slab_lo <= x[axis] <= slab_hi (either bound may be +-inf), intersected with
+/// `ref` (the reference's previous box). The exact (real-number) clipped
+/// polygon lies inside the result: edge/plane intersections are computed in
+/// double with an explicit error bound and rounded outward to float; the
+/// axis coordinate is clamped to the slab planes exactly. Returns an empty box
+/// (Aabb::empty()) when the triangle part inside the slab and `ref` is empty.
+Aabb clip_triangle(const std::array<Vec3, 3>& tri, int axis, float slab_lo, float slab_hi,
+                   const Aabb& ref);
+
+/// clip_triangle for the consecutive slabs [planes[s], planes[s+1]],
+/// s = 0..slabs-1 (planes non-decreasing), written to out[0..slabs). Bitwise
+/// equal to calling clip_triangle per slab, but each plane's edge crossings
+/// are computed once (used by the SBVH's spatial-split binning).
+void chop_triangle(const std::array<Vec3, 3>& tri, int axis, const float* planes, int slabs,
+                   const Aabb& ref, Aabb* out);
+
+/// Checks a BinaryBvh against its scene: canonical depth-first layout, root 0,
+/// internal boxes contain their children's boxes, every leaf box meets its
+/// triangle's box, every triangle has >= 1 leaf, `references` == leaves, and
+/// `samples` random points (double) on triangles each lie in some reference
+/// box of their triangle (tolerance 1e-12 relative to coordinate magnitude,
+/// far below one float ulp). Returns false with a message on the first failure.
+[[nodiscard]] bool validate_binary_bvh(const Scene& scene, const BinaryBvh& bvh,
+                                       std::string& error, int samples = 4000,
+                                       uint64_t seed = 1);
+
+}  // namespace cwbvh::compiler

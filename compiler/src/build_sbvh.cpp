@@ -1,0 +1,591 @@
+// Spatial-split BVH (SBVH) builder: Stich, Friedrich, Dietrich, "Spatial Splits
+// in Bounding Volume Hierarchies", HPG 2009. Builds down to exactly one
+// triangle reference per leaf (the Ylitie et al. 2017 collapse needs it).
+//
+// Determinism: the output is bit-identical for any thread count because
+//  - every decision is made from data whose value does not depend on the
+//    schedule: boxes are min/max reductions (exact, order-free), counts are
+//    integer sums, SAH costs are evaluated sequentially in a fixed order;
+//  - sorts use a strict total order on references (ties are identical refs);
+//  - the reference budget is handed down the tree, never shared through an
+//    atomic counter;
+//  - nodes are renumbered at the end into canonical depth-first order.
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <deque>
+#include <limits>
+#include <numeric>
+#include <utility>
+#include <vector>
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_reduce.h>
+#include <tbb/blocked_range.h>
+#include <tbb/task_arena.h>
+#include <tbb/task_group.h>
+
+#include "cwbvh/compiler/build.h"
+
+namespace cwbvh::compiler {
+namespace {
+
+/// Nodes of up to this many references get a full SAH sweep over references
+/// sorted by centroid (all n-1 candidate positions per axis); larger nodes use
+/// kObjectBins centroid bins. Chosen by measurement (see build_sbvh report).
+constexpr size_t kSweepMaxRefs = 2048;
+constexpr int kObjectBins = 64;
+/// Subtrees with at least this many references are built as separate tasks.
+constexpr size_t kTaskRefs = 2048;
+/// Binning of nodes with at least this many references runs in parallel
+/// (fixed grain; the result is exact either way).
+constexpr size_t kParallelBinRefs = 32768;
+/// Spatial splits are not tried below this depth bound (guards against
+/// pathological recursion; the reference budget also bounds them).
+constexpr int kMaxSpatialDepth = 64;
+/// Upper bound of SbvhConfig::bins.
+constexpr int kMaxBins = 256;
+/// A spatial split that leaves one side with all of the parent's references
+/// (every reference straddles the plane, e.g. a bundle of parallel slivers) is
+/// allowed at most this many times on a path from the root; without a cap a
+/// stack of (nearly) coincident triangles would be chopped again and again,
+/// each time SAH-cheaper but never separating anything, until the budget is
+/// gone.
+constexpr int kMaxNonShrinkingSpatial = 3;
+
+struct Ref {
+    Aabb box;
+    uint32_t tri;
+};
+
+struct TmpNode {
+    Aabb box;
+    TmpNode* child[2] = {nullptr, nullptr};
+    uint32_t prim = kInvalidIndex;
+};
+
+inline float centroid(const Ref& r, int a) { return r.box.lo[a] * 0.5f + r.box.hi[a] * 0.5f; }
+
+/// Strict total order along axis a: centroid, then triangle id, then box.
+/// References that compare equal are bitwise identical, so any sort yields the
+/// same array.
+struct RefLess {
+    int a;
+    bool operator()(const Ref& x, const Ref& y) const {
+        const float cx = centroid(x, a), cy = centroid(y, a);
+        if (cx != cy) return cx < cy;
+        if (x.tri != y.tri) return x.tri < y.tri;
+        for (int j = 0; j < 3; ++j) {
+            if (x.box.lo[j] != y.box.lo[j]) return x.box.lo[j] < y.box.lo[j];
+            if (x.box.hi[j] != y.box.hi[j]) return x.box.hi[j] < y.box.hi[j];
+        }
+        return false;
+    }
+};
+
+/// Union that is safe for empty boxes. (Aabb::grow(const Aabb&) grows by the
+/// two corner points, which turns an empty argument's +inf/-inf corners into
+/// an infinite box; empty bins are common here.)
+inline void merge(Aabb& a, const Aabb& b) {
+    for (int j = 0; j < 3; ++j) {
+        a.lo[j] = std::min(a.lo[j], b.lo[j]);
+        a.hi[j] = std::max(a.hi[j], b.hi[j]);
+    }
+}
+
+Aabb intersect(const Aabb& a, const Aabb& b) {
+    Aabb r;
+    for (int j = 0; j < 3; ++j) {
+        r.lo[j] = std::max(a.lo[j], b.lo[j]);
+        r.hi[j] = std::min(a.hi[j], b.hi[j]);
+    }
+    return r;
+}
+
+struct Bounds {
+    Aabb box, centroids;
+    void join(const Bounds& o) { merge(box, o.box); merge(centroids, o.centroids); }
+};
+
+Bounds compute_bounds(const std::vector<Ref>& refs) {
+    auto body = [&](const tbb::blocked_range<size_t>& r, Bounds b) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            merge(b.box, refs[i].box);
+            b.centroids.grow(Vec3{centroid(refs[i], 0), centroid(refs[i], 1), centroid(refs[i], 2)});
+        }
+        return b;
+    };
+    if (refs.size() < kParallelBinRefs) return body(tbb::blocked_range<size_t>(0, refs.size()), Bounds{});
+    // min/max are exact and order-free: the reduction order does not matter.
+    return tbb::parallel_reduce(tbb::blocked_range<size_t>(0, refs.size(), 4096), Bounds{}, body,
+                                [](Bounds a, const Bounds& b) { a.join(b); return a; });
+}
+
+struct Split {
+    double cost = std::numeric_limits<double>::infinity();
+    int axis = -1;
+    enum Kind { kNone, kSweep, kBinned, kSpatial } kind = kNone;
+    size_t index = 0;    // kSweep: left count; kBinned/kSpatial: first bin on the right
+    Aabb left, right;    // predicted child boxes
+    uint64_t nl = 0, nr = 0;
+    float plane = 0.0f;               // kSpatial: split plane
+    float bin_lo = 0.0f, bin_scale = 0.0f;  // kBinned: centroid binning parameters
+};
+
+// ---------------------------------------------------------------------------
+// Object splits
+// ---------------------------------------------------------------------------
+
+/// Full SAH sweep over references sorted by centroid along each axis. Ties in
+/// cost go to the position nearest the middle, which makes the split of
+/// identical references a median split (no degenerate 1 : n-1 chains).
+Split sweep_object_split(const std::vector<Ref>& refs) {
+    const size_t n = refs.size();
+    Split best;
+    std::vector<Ref> sorted(refs);
+    std::vector<double> right_area(n);
+    std::vector<Aabb> right_box(n);
+    for (int a = 0; a < 3; ++a) {
+        std::sort(sorted.begin(), sorted.end(), RefLess{a});
+        Aabb acc;
+        for (size_t i = n; i-- > 1;) {  // right_box[i] = union of sorted[i..n)
+            merge(acc, sorted[i].box);
+            right_box[i] = acc;
+            right_area[i] = acc.half_area();
+        }
+        Aabb left;
+        const double half = double(n) / 2.0;
+        for (size_t k = 1; k < n; ++k) {  // left = sorted[0..k)
+            merge(left, sorted[k - 1].box);
+            const double cost = left.half_area() * double(k) + right_area[k] * double(n - k);
+            const bool better = cost < best.cost ||
+                (cost == best.cost && best.axis == a &&
+                 std::fabs(double(k) - half) < std::fabs(double(best.index) - half));
+            if (better) {
+                best.cost = cost;
+                best.axis = a;
+                best.kind = Split::kSweep;
+                best.index = k;
+                best.left = left;
+                best.right = right_box[k];
+                best.nl = k;
+                best.nr = n - k;
+            }
+        }
+    }
+    return best;
+}
+
+struct ObjectBins {
+    Aabb box[kObjectBins];
+    uint32_t count[kObjectBins] = {};
+    void join(const ObjectBins& o) {
+        for (int b = 0; b < kObjectBins; ++b) { merge(box[b], o.box[b]); count[b] += o.count[b]; }
+    }
+};
+
+/// Bin of a centroid: float arithmetic, the same expression for binning and
+/// partitioning so the two always agree.
+inline int object_bin(float c, float lo, float scale) {
+    const int b = int((c - lo) * scale);
+    return std::clamp(b, 0, kObjectBins - 1);
+}
+
+Split binned_object_split(const std::vector<Ref>& refs, const Aabb& cbox) {
+    Split best;
+    const size_t n = refs.size();
+    for (int a = 0; a < 3; ++a) {
+        const float ext = cbox.hi[a] - cbox.lo[a];
+        if (!(ext > 0.0f) || !std::isfinite(ext)) continue;
+        const float scale = float(kObjectBins) * 0.99999f / ext;
+        const float lo = cbox.lo[a];
+        auto body = [&](const tbb::blocked_range<size_t>& r, ObjectBins bins) {
+            for (size_t i = r.begin(); i != r.end(); ++i) {
+                const int b = object_bin(centroid(refs[i], a), lo, scale);
+                merge(bins.box[b], refs[i].box);
+                ++bins.count[b];
+            }
+            return bins;
+        };
+        const ObjectBins bins = n < kParallelBinRefs
+            ? body(tbb::blocked_range<size_t>(0, n), ObjectBins{})
+            : tbb::parallel_reduce(tbb::blocked_range<size_t>(0, n, 4096), ObjectBins{}, body,
+                                   [](ObjectBins x, const ObjectBins& y) { x.join(y); return x; });
+        Aabb rbox[kObjectBins];
+        uint64_t rcount[kObjectBins];
+        Aabb acc;
+        uint64_t cnt = 0;
+        for (int b = kObjectBins - 1; b >= 1; --b) {
+            merge(acc, bins.box[b]);
+            cnt += bins.count[b];
+            rbox[b] = acc;
+            rcount[b] = cnt;
+        }
+        Aabb left;
+        uint64_t lcount = 0;
+        for (int b = 1; b < kObjectBins; ++b) {
+            merge(left, bins.box[b - 1]);
+            lcount += bins.count[b - 1];
+            if (lcount == 0 || rcount[b] == 0) continue;
+            const double cost = left.half_area() * double(lcount) + rbox[b].half_area() * double(rcount[b]);
+            if (cost < best.cost) {
+                best = Split{cost, a, Split::kBinned, size_t(b), left, rbox[b], lcount, rcount[b], 0.0f, lo, scale};
+            }
+        }
+    }
+    return best;
+}
+
+// ---------------------------------------------------------------------------
+// Spatial splits (Stich et al. 2009, section 4.3)
+// ---------------------------------------------------------------------------
+
+struct SpatialBins {
+    std::vector<Aabb> box;
+    std::vector<uint32_t> enter, exit;
+    explicit SpatialBins(int n = 0) : box(n), enter(n, 0), exit(n, 0) {}
+    void join(const SpatialBins& o) {
+        for (size_t b = 0; b < box.size(); ++b) {
+            merge(box[b], o.box[b]);
+            enter[b] += o.enter[b];
+            exit[b] += o.exit[b];
+        }
+    }
+};
+
+/// Bin planes along one axis: plane[0] = lo, plane[B] = hi, evenly spaced in
+/// between (double arithmetic rounded to nearest; made monotone).
+std::vector<float> bin_planes(float lo, float hi, int bins) {
+    std::vector<float> p(bins + 1);
+    p[0] = lo;
+    p[bins] = hi;
+    for (int i = 1; i < bins; ++i) {
+        p[i] = float(double(lo) + (double(hi) - double(lo)) * double(i) / double(bins));
+        p[i] = std::clamp(p[i], p[i - 1], hi);
+    }
+    return p;
+}
+
+/// Bin of a lower bound: plane[b] <= x < plane[b+1] (clamped to the bins).
+int bin_of_lo(const std::vector<float>& p, float x) {
+    const int bins = int(p.size()) - 1;
+    const auto it = std::upper_bound(p.begin() + 1, p.end() - 1, x);
+    return std::clamp(int(it - p.begin()) - 1, 0, bins - 1);
+}
+/// Bin of an upper bound: plane[b] < x <= plane[b+1], so a reference that only
+/// touches a plane from the left is not counted in the bin right of it.
+int bin_of_hi(const std::vector<float>& p, float x) {
+    const int bins = int(p.size()) - 1;
+    const auto it = std::lower_bound(p.begin() + 1, p.end() - 1, x);
+    return std::clamp(int(it - p.begin()) - 1, 0, bins - 1);
+}
+
+class Builder {
+public:
+    Builder(const Scene& scene, const SbvhConfig& config) : scene_(scene), config_(config) {}
+
+    /// `chops`: non-shrinking spatial splits on the path from the root.
+    TmpNode* build(std::vector<Ref>& refs, uint64_t budget, int depth, int chops) {
+        TmpNode* node = &nodes_.local().emplace_back();
+        const size_t n = refs.size();
+        const Bounds bounds = compute_bounds(refs);
+        node->box = bounds.box;
+        if (n == 1) {
+            node->prim = refs[0].tri;
+            return node;
+        }
+        if (depth == 0) root_area_ = bounds.box.half_area();
+
+        // 1. Best object split: full sweep for small nodes or when the
+        //    centroids do not spread (identical references), bins otherwise.
+        Split object;
+        if (n > kSweepMaxRefs) object = binned_object_split(refs, bounds.centroids);
+        if (object.kind == Split::kNone) object = sweep_object_split(refs);
+
+        // 2. Spatial split, only where the object split's children overlap
+        //    by more than alpha * A(root) (Stich et al. 2009, section 4.5) and
+        //    the subtree still has reference budget.
+        Split best = object;
+        std::vector<Ref> left, right;
+        bool done = false;
+        // Bitwise equal child boxes: the references coincide (duplicated
+        // triangles); chopping them never separates anything.
+        const bool coincident = std::memcmp(&object.left, &object.right, sizeof(Aabb)) == 0;
+        if (budget > 0 && depth < kMaxSpatialDepth && root_area_ > 0.0 && !coincident) {
+            const double overlap = intersect(object.left, object.right).half_area();
+            if (overlap > double(config_.split_alpha) * root_area_) {
+                const Split spatial = spatial_split(refs, bounds.box);
+                if (spatial.cost < object.cost &&
+                    spatial_partition(refs, spatial, object.cost, budget,
+                                      chops < kMaxNonShrinkingSpatial, left, right)) {
+                    best = spatial;
+                    done = true;
+                    spatial_splits_.fetch_add(1, std::memory_order_relaxed);
+                }
+            }
+        }
+        if (!done) {
+            object_partition(refs, object, left, right);
+            object_splits_.fetch_add(1, std::memory_order_relaxed);
+        }
+
+        // Budget: duplicates made here are paid for; the rest is shared in
+        // proportion to the children's reference counts (integer arithmetic,
+        // deterministic).
+        const uint64_t dup = left.size() + right.size() - n;
+        const uint64_t rest = budget - dup;  // spatial_partition ensured dup <= budget
+        const uint64_t bl = rest / (left.size() + right.size()) * left.size() +
+                            rest % (left.size() + right.size()) * left.size() / (left.size() + right.size());
+        const uint64_t br = rest - bl;
+        std::vector<Ref>().swap(refs);  // free the parent's list before recursing
+        const int child_chops = chops + ((left.size() == n || right.size() == n) ? 1 : 0);
+
+        if (n >= kTaskRefs) {
+            tbb::task_group g;
+            g.run([&] { node->child[0] = build(left, bl, depth + 1, child_chops); });
+            node->child[1] = build(right, br, depth + 1, child_chops);
+            g.wait();
+        } else {
+            node->child[0] = build(left, bl, depth + 1, child_chops);
+            node->child[1] = build(right, br, depth + 1, child_chops);
+        }
+        return node;
+    }
+
+    uint64_t spatial_splits() const { return spatial_splits_.load(); }
+    uint64_t object_splits() const { return object_splits_.load(); }
+
+private:
+    void object_partition(const std::vector<Ref>& refs, const Split& s, std::vector<Ref>& left,
+                          std::vector<Ref>& right) {
+        if (s.kind == Split::kSweep) {
+            std::vector<Ref> sorted(refs);
+            std::sort(sorted.begin(), sorted.end(), RefLess{s.axis});
+            left.assign(sorted.begin(), sorted.begin() + ptrdiff_t(s.index));
+            right.assign(sorted.begin() + ptrdiff_t(s.index), sorted.end());
+            return;
+        }
+        // Binned: the same bin function and parameters as binned_object_split.
+        const int a = s.axis;
+        left.clear();
+        right.clear();
+        left.reserve(s.nl);
+        right.reserve(s.nr);
+        for (const Ref& r : refs) {
+            if (object_bin(centroid(r, a), s.bin_lo, s.bin_scale) < int(s.index)) left.push_back(r);
+            else right.push_back(r);
+        }
+    }
+
+    Split spatial_split(const std::vector<Ref>& refs, const Aabb& box) {
+        Split best;
+        const int nb = config_.bins;
+        const size_t n = refs.size();
+        for (int a = 0; a < 3; ++a) {
+            if (!(box.hi[a] > box.lo[a])) continue;
+            const std::vector<float> planes = bin_planes(box.lo[a], box.hi[a], nb);
+            auto body = [&](const tbb::blocked_range<size_t>& r, SpatialBins bins) {
+                for (size_t i = r.begin(); i != r.end(); ++i) bin_reference(refs[i], a, planes, bins);
+                return bins;
+            };
+            const SpatialBins bins = n < kParallelBinRefs
+                ? body(tbb::blocked_range<size_t>(0, n), SpatialBins(nb))
+                : tbb::parallel_reduce(tbb::blocked_range<size_t>(0, n, 4096), SpatialBins(nb), body,
+                                       [](SpatialBins x, const SpatialBins& y) { x.join(y); return x; });
+            std::vector<Aabb> rbox(nb);
+            std::vector<uint64_t> rcount(nb, 0);
+            Aabb acc;
+            uint64_t cnt = 0;
+            for (int b = nb - 1; b >= 1; --b) {
+                merge(acc, bins.box[b]);
+                cnt += bins.exit[b];
+                rbox[b] = acc;
+                rcount[b] = cnt;
+            }
+            Aabb left;
+            uint64_t lcount = 0;
+            for (int b = 1; b < nb; ++b) {  // plane[b] separates bins b-1 | b
+                merge(left, bins.box[b - 1]);
+                lcount += bins.enter[b - 1];
+                if (lcount == 0 || rcount[b] == 0) continue;
+                if (!(planes[b] > planes[0] && planes[b] < planes[nb])) continue;
+                const double cost = left.half_area() * double(lcount) + rbox[b].half_area() * double(rcount[b]);
+                if (cost < best.cost) {
+                    best = Split{cost, a, Split::kSpatial, size_t(b), left, rbox[b], lcount, rcount[b], planes[b]};
+                }
+            }
+        }
+        return best;
+    }
+
+    /// Adds one reference to the spatial bins: the triangle is chopped by the
+    /// bin planes it spans (clipped against the triangle itself, intersected
+    /// with the reference's box); enter/exit counts go to the first/last bin
+    /// that really holds part of it.
+    void bin_reference(const Ref& r, int a, const std::vector<float>& planes, SpatialBins& bins) const {
+        const int b0 = bin_of_lo(planes, r.box.lo[a]);
+        const int b1 = std::max(b0, bin_of_hi(planes, r.box.hi[a]));
+        if (b0 == b1) {
+            merge(bins.box[b0], r.box);
+            ++bins.enter[b0];
+            ++bins.exit[b0];
+            return;
+        }
+        const auto tri = scene_.triangle(r.tri);
+        static thread_local std::vector<Aabb> parts;  // scratch, no task switch while in use
+        if (parts.size() < size_t(kMaxBins)) parts.resize(kMaxBins);
+        chop_triangle(tri, a, planes.data() + b0, b1 - b0 + 1, r.box, parts.data());
+        int first = -1, last = -1;
+        for (int b = b0; b <= b1; ++b) {
+            const Aabb& part = parts[b - b0];
+            if (part.empty()) continue;
+            merge(bins.box[b], part);
+            if (first < 0) first = b;
+            last = b;
+        }
+        if (first < 0) {  // cannot happen for a consistent reference; keep it whole
+            merge(bins.box[b0], r.box);
+            first = last = b0;
+        }
+        ++bins.enter[first];
+        ++bins.exit[last];
+    }
+
+    /// Distributes references for a spatial split at s.plane, with
+    /// reference unsplitting (Stich et al. 2009, section 4.4): a straddling
+    /// reference is put wholly on one side when that is cheaper than
+    /// duplicating it. Returns false (use the object split) when a side would
+    /// be empty, a side would keep all references (allowed only
+    /// kMaxNonShrinkingSpatial times per path), the duplicates exceed the budget, or the real cost is not
+    /// below the object split's.
+    bool spatial_partition(const std::vector<Ref>& refs, const Split& s, double object_cost,
+                           uint64_t budget, bool allow_nonshrinking, std::vector<Ref>& left,
+                           std::vector<Ref>& right) {
+        const int a = s.axis;
+        const float plane = s.plane;
+        const float kInf = std::numeric_limits<float>::infinity();
+        Aabb lbox = s.left, rbox = s.right;
+        double nl = double(s.nl), nr = double(s.nr);
+        left.clear();
+        right.clear();
+        left.reserve(s.nl);
+        right.reserve(s.nr);
+        for (const Ref& r : refs) {
+            if (r.box.hi[a] <= plane) { left.push_back(r); continue; }
+            if (r.box.lo[a] >= plane) { right.push_back(r); continue; }
+            const auto tri = scene_.triangle(r.tri);
+            const Aabb lpart = clip_triangle(tri, a, -kInf, plane, r.box);
+            const Aabb rpart = clip_triangle(tri, a, plane, kInf, r.box);
+            if (lpart.empty()) { right.push_back(Ref{rpart.empty() ? r.box : rpart, r.tri}); continue; }
+            if (rpart.empty()) { left.push_back(Ref{lpart, r.tri}); continue; }
+            const double c_split = lbox.half_area() * nl + rbox.half_area() * nr;
+            Aabb lu = lbox; merge(lu, r.box);
+            Aabb ru = rbox; merge(ru, r.box);
+            const double c_left = lu.half_area() * nl + rbox.half_area() * (nr - 1);
+            const double c_right = lbox.half_area() * (nl - 1) + ru.half_area() * nr;
+            if (c_left < c_split && c_left <= c_right) {
+                left.push_back(r);
+                lbox = lu;
+                nr -= 1;
+            } else if (c_right < c_split) {
+                right.push_back(r);
+                rbox = ru;
+                nl -= 1;
+            } else {
+                left.push_back(Ref{lpart, r.tri});
+                right.push_back(Ref{rpart, r.tri});
+            }
+        }
+        const size_t n = refs.size();
+        const bool shrinks = left.size() < n && right.size() < n;
+        if (left.empty() || right.empty() || (!shrinks && !allow_nonshrinking) ||
+            left.size() + right.size() - n > budget)
+            return false;
+        Aabb la, ra;
+        for (const Ref& r : left) merge(la, r.box);
+        for (const Ref& r : right) merge(ra, r.box);
+        const double cost = la.half_area() * double(left.size()) + ra.half_area() * double(right.size());
+        return cost < object_cost;
+    }
+
+    const Scene& scene_;
+    const SbvhConfig& config_;
+    double root_area_ = 0.0;
+    std::atomic<uint64_t> spatial_splits_{0}, object_splits_{0};
+    tbb::enumerable_thread_specific<std::deque<TmpNode>> nodes_;
+};
+
+/// Canonical depth-first numbering (left subtree first), root = node 0.
+void flatten(const TmpNode* root, BinaryBvh& out) {
+    out.nodes.clear();
+    struct Item { const TmpNode* node; uint32_t parent; int side; };
+    std::vector<Item> stack{{root, kInvalidIndex, 0}};
+    while (!stack.empty()) {
+        const Item it = stack.back();
+        stack.pop_back();
+        const uint32_t index = uint32_t(out.nodes.size());
+        if (it.parent != kInvalidIndex) out.nodes[it.parent].child[it.side] = index;
+        BinaryNode bn;
+        bn.box = it.node->box;
+        bn.prim = it.node->prim;
+        out.nodes.push_back(bn);
+        if (it.node->prim == kInvalidIndex) {
+            stack.push_back({it.node->child[1], index, 1});
+            stack.push_back({it.node->child[0], index, 0});
+        }
+    }
+}
+
+}  // namespace
+
+bool build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out, std::string& error) {
+    out = BinaryBvh{};
+    const size_t tris = scene.triangle_count();
+    if (tris == 0) { error = "build_sbvh: the scene has no triangles"; return false; }
+    if (tris >= kInvalidIndex / 4) { error = "build_sbvh: too many triangles for 32-bit node indices"; return false; }
+    if (config.bins < 2 || config.bins > kMaxBins) { error = "build_sbvh: bins must be in 2..256"; return false; }
+    if (!(config.max_reference_growth >= 0.0) || !(config.split_alpha >= 0.0f)) {
+        error = "build_sbvh: split_alpha and max_reference_growth must be >= 0";
+        return false;
+    }
+    for (size_t i = 0; i < tris; ++i) {
+        for (const uint32_t v : scene.indices[i]) {
+            if (v >= scene.vertices.size()) { error = "build_sbvh: triangle " + std::to_string(i) + " has a vertex index out of range"; return false; }
+            for (const float c : scene.vertices[v]) {
+                if (!std::isfinite(c)) { error = "build_sbvh: triangle " + std::to_string(i) + " has a non-finite vertex"; return false; }
+            }
+        }
+    }
+    // Budget: the total number of references may grow by growth*tris, capped
+    // so that node indices stay 32-bit.
+    const double extra_d = std::min(config.max_reference_growth * double(tris), double(kInvalidIndex / 4) - double(tris));
+    const uint64_t extra = uint64_t(std::max(0.0, extra_d));
+
+    auto run = [&] {
+        std::vector<Ref> refs(tris);
+        for (size_t i = 0; i < tris; ++i) {
+            Aabb b;
+            for (const Vec3& v : scene.triangle(i)) b.grow(v);
+            refs[i] = Ref{b, uint32_t(i)};
+        }
+        Builder builder(scene, config);
+        const TmpNode* root = builder.build(refs, extra, 0, 0);
+        flatten(root, out);
+        out.spatial_splits = builder.spatial_splits();
+        out.object_splits = builder.object_splits();
+    };
+    if (config.threads > 0) {
+        tbb::task_arena arena(config.threads);
+        arena.execute(run);
+    } else {
+        run();
+    }
+    uint64_t leaves = 0;
+    for (const BinaryNode& n : out.nodes) leaves += n.is_leaf() ? 1 : 0;
+    out.references = leaves;
+    return true;
+}
+
+}  // namespace cwbvh::compiler

@@ -1,0 +1,139 @@
+// Conservative clipping of a triangle against an axis-aligned slab, shared by
+// the SBVH builder (Stich, Friedrich, Dietrich 2009, section 4.3: references
+// are split by clipping the triangle, not its box) and Embree's splitPrimitive
+// callback (build_embree.cpp).
+//
+// The triangle part inside a slab lo <= x[axis] <= hi is the convex hull of the
+// triangle's vertices inside the slab and of the points where its three edges
+// cross the two planes. Every such point is computed once, directly from the
+// float input vertices (no clip-after-clip error accumulation), in double,
+// with an explicit error bound; the float box is then rounded outward.
+#include <algorithm>
+#include <cfloat>
+#include <cmath>
+#include <limits>
+
+#include "cwbvh/compiler/build.h"
+
+namespace cwbvh::compiler {
+namespace {
+
+// Round a double down / up to a float. Direction matters: a lower bound must
+// never end up above the exact value and an upper bound never below it, else a
+// ray could miss the part of the triangle that lies in the gap.
+float round_down(double x) {
+    float f = static_cast<float>(x);
+    if (static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+    return f;
+}
+float round_up(double x) {
+    float f = static_cast<float>(x);
+    if (static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+    return f;
+}
+
+struct DBox {
+    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL};
+    double hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+    bool any = false;
+    void grow(int j, double v, double err) {
+        // v - err rounds to nearest in double; err (16 ulps of the operands'
+        // magnitude, see below) exceeds the error of v by > 2x, so the
+        // result stays below the exact coordinate even after that rounding.
+        lo[j] = std::min(lo[j], v - err);
+        hi[j] = std::max(hi[j], v + err);
+    }
+    void grow(const DBox& b) {
+        for (int j = 0; j < 3; ++j) {
+            lo[j] = std::min(lo[j], b.lo[j]);
+            hi[j] = std::max(hi[j], b.hi[j]);
+        }
+        any = any || b.any;
+    }
+};
+
+/// Conservative double box of the points where the triangle's edges cross
+/// the plane x[axis] = c (only edges with endpoints strictly on both sides;
+/// endpoints on the plane are vertices and handled by the caller).
+DBox plane_cut(const std::array<Vec3, 3>& tri, int axis, float c) {
+    constexpr double kEps = DBL_EPSILON * 0.5;  // 2^-53, unit roundoff of double
+    DBox box;
+    if (!std::isfinite(c)) return box;
+    for (int e = 0; e < 3; ++e) {
+        const Vec3& a = tri[e];
+        const Vec3& b = tri[e == 2 ? 0 : e + 1];
+        const double da = double(a[axis]) - c, db = double(b[axis]) - c;
+        if (!((da < 0 && db > 0) || (da > 0 && db < 0))) continue;
+        // t in (0,1): relative error <= 3 ulps (two subtractions, one division).
+        const double t = (double(c) - a[axis]) / (double(b[axis]) - a[axis]);
+        for (int j = 0; j < 3; ++j) {
+            if (j == axis) {
+                box.grow(j, c, 0.0);  // the crossing lies exactly on the plane
+                continue;
+            }
+            // p = a + t (b - a): |error| <= ~7 u (|a|+|b|); we use 16 u plus a
+            // tiny absolute term so that the bound never underflows to 0.
+            const double p = double(a[j]) + t * (double(b[j]) - a[j]);
+            const double err = 16.0 * kEps * (std::fabs(double(a[j])) + std::fabs(double(b[j]))) + 1e-300;
+            box.grow(j, p, err);
+        }
+        box.any = true;
+    }
+    return box;
+}
+
+/// Float box of `part` restricted to the slab and to `ref`; empty if none.
+Aabb finish(const DBox& part, int axis, float slab_lo, float slab_hi, const Aabb& ref) {
+    if (!part.any) return Aabb{};
+    Aabb out;
+    for (int j = 0; j < 3; ++j) {
+        out.lo[j] = round_down(part.lo[j]);  // outward: down for the lower bound
+        out.hi[j] = round_up(part.hi[j]);    // outward: up for the upper bound
+    }
+    // Split axis: the slab planes are floats, so clamping is exact.
+    if (out.lo[axis] < slab_lo) out.lo[axis] = slab_lo;
+    if (out.hi[axis] > slab_hi) out.hi[axis] = slab_hi;
+    // Intersect with the reference's previous box (both are conservative for
+    // the part of the triangle they describe, so the intersection is too).
+    for (int j = 0; j < 3; ++j) {
+        if (out.lo[j] < ref.lo[j]) out.lo[j] = ref.lo[j];
+        if (out.hi[j] > ref.hi[j]) out.hi[j] = ref.hi[j];
+        if (!(out.lo[j] <= out.hi[j])) return Aabb{};  // nothing of this reference on this side
+    }
+    return out;
+}
+
+}  // namespace
+
+void chop_triangle(const std::array<Vec3, 3>& tri, int axis, const float* planes, int slabs,
+                   const Aabb& ref, Aabb* out) {
+    // Each plane's edge crossings are computed once and shared by the two
+    // slabs it bounds.
+    DBox lower = plane_cut(tri, axis, planes[0]);
+    for (int s = 0; s < slabs; ++s) {
+        const float lo = planes[s], hi = planes[s + 1];
+        const DBox upper = plane_cut(tri, axis, hi);
+        DBox part = lower;
+        part.grow(upper);
+        // Vertices inside the slab: exact (float -> double is exact).
+        for (int k = 0; k < 3; ++k) {
+            const float c = tri[k][axis];
+            if (c >= lo && c <= hi) {
+                for (int j = 0; j < 3; ++j) part.grow(j, tri[k][j], 0.0);
+                part.any = true;
+            }
+        }
+        out[s] = finish(part, axis, lo, hi, ref);
+        lower = upper;
+    }
+}
+
+Aabb clip_triangle(const std::array<Vec3, 3>& tri, int axis, float slab_lo, float slab_hi,
+                   const Aabb& ref) {
+    const float planes[2] = {slab_lo, slab_hi};
+    Aabb out;
+    chop_triangle(tri, axis, planes, 1, ref, &out);
+    return out;
+}
+
+}  // namespace cwbvh::compiler

@@ -1,0 +1,84 @@
+// Test-only mesh helpers for tests/build: a tiny OBJ reader (v/f lines only,
+// fan triangulation, negative indices) and generated scenes. Not the importer.
+#pragma once
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include "cwbvh/compiler/model.h"
+
+namespace cwbvh::compiler::test {
+
+inline bool read_obj(const std::string& path, Scene& scene) {
+    std::ifstream in(path);
+    if (!in) return false;
+    scene = Scene{};
+    std::string line;
+    while (std::getline(in, line)) {
+        std::istringstream ls(line);
+        std::string tag;
+        ls >> tag;
+        if (tag == "v") {
+            Vec3 v{};
+            ls >> v[0] >> v[1] >> v[2];
+            scene.vertices.push_back(v);
+        } else if (tag == "f") {
+            std::vector<uint32_t> idx;
+            std::string tok;
+            while (ls >> tok) {
+                long i = std::strtol(tok.c_str(), nullptr, 10);
+                if (i < 0) i = long(scene.vertices.size()) + i + 1;
+                idx.push_back(uint32_t(i - 1));
+            }
+            for (size_t k = 2; k < idx.size(); ++k) {
+                scene.indices.push_back({idx[0], idx[k - 1], idx[k]});
+                scene.sources.push_back(SourceRef{0, 0, 0, uint32_t(scene.indices.size() - 1)});
+            }
+        }
+    }
+    scene.input_triangles = scene.indices.size();
+    return !scene.indices.empty();
+}
+
+inline void add_triangle(Scene& s, const Vec3& a, const Vec3& b, const Vec3& c) {
+    const uint32_t base = uint32_t(s.vertices.size());
+    s.vertices.push_back(a);
+    s.vertices.push_back(b);
+    s.vertices.push_back(c);
+    s.indices.push_back({base, base + 1, base + 2});
+    s.sources.push_back(SourceRef{0, 0, 0, uint32_t(s.indices.size() - 1)});
+    s.input_triangles = s.indices.size();
+}
+
+inline Scene random_soup(int n, uint64_t seed, float size = 0.05f) {
+    Scene s;
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f), d(-size, size);
+    for (int i = 0; i < n; ++i) {
+        const Vec3 a{u(rng), u(rng), u(rng)};
+        add_triangle(s, a, Vec3{a[0] + d(rng), a[1] + d(rng), a[2] + d(rng)},
+                     Vec3{a[0] + d(rng), a[1] + d(rng), a[2] + d(rng)});
+    }
+    return s;
+}
+
+/// Long thin diagonal triangles: their boxes overlap massively, spatial
+/// splits pay off (Stich et al. 2009, Figure 1).
+inline Scene sliver_scene(int n) {
+    Scene s;
+    for (int i = 0; i < n; ++i) {
+        const float o = float(i) / float(n);
+        add_triangle(s, Vec3{0.0f, o, 0.0f}, Vec3{1.0f, o + 1.0f, 1.0f}, Vec3{1.0f, o + 1.0f + 0.5f / float(n), 1.0f});
+    }
+    return s;
+}
+
+inline std::string scene_path(const char* name) {
+    return std::string(CWBVH_SHARED_SCENES_DIR) + "/" + name;
+}
+
+}  // namespace cwbvh::compiler::test
