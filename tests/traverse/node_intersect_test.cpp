@@ -1,0 +1,231 @@
+// intersect_node never misses a child box that the exact ray segment touches
+// (conservative, Ize 2013 style), on random and adversarial nodes and rays.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "cwbvh/node_intersect.h"
+#include "traverse/oracle.h"
+
+namespace cwbvh::test {
+namespace {
+
+// Exact: does {o + t d : tmin <= t <= tmax} touch the closed box [lo, hi]?
+// Slab intervals are compared as fractions with expansion arithmetic (oracle.h).
+bool exact_box_hit(const float* lo, const float* hi, const Ray& r) {
+    // For each bounded axis: t0 = N0/|d|, t1 = N1/|d| with N = (plane - o) * sign(d).
+    struct Frac {
+        Exact2 num;  // exact plane - o, sign-adjusted
+        float den;   // |d| > 0
+    };
+    Frac t0[3], t1[3];
+    int n = 0;
+    for (int a = 0; a < 3; ++a) {
+        if (r.dir[a] == 0.0f) {
+            if (!(lo[a] <= r.org[a] && r.org[a] <= hi[a])) return false;
+            continue;
+        }
+        Exact2 dl = exact_diff(lo[a], r.org[a]), dh = exact_diff(hi[a], r.org[a]);
+        if (r.dir[a] < 0) {
+            std::swap(dl, dh);
+            dl = {-dl.h, -dl.l};
+            dh = {-dh.h, -dh.l};
+        }
+        t0[n] = {dl, std::fabs(r.dir[a])};
+        t1[n] = {dh, std::fabs(r.dir[a])};
+        ++n;
+    }
+    // a/b <= c/d  <=>  a*d - c*b <= 0 (b, d > 0).
+    auto le = [](const Frac& x, const Frac& y) {
+        Expansion e;
+        double p, q;
+        two_prod(x.num.h, double(y.den), p, q);
+        e.add(p);
+        e.add(q);
+        two_prod(x.num.l, double(y.den), p, q);
+        e.add(p);
+        e.add(q);
+        two_prod(-y.num.h, double(x.den), p, q);
+        e.add(p);
+        e.add(q);
+        two_prod(-y.num.l, double(x.den), p, q);
+        e.add(p);
+        e.add(q);
+        return e.sign() <= 0;
+    };
+    const Frac fmin{{double(r.tmin), 0.0}, 1.0f}, fmax{{double(r.tmax), 0.0}, 1.0f};
+    for (int i = 0; i < n; ++i) {
+        if (std::isfinite(r.tmin) && !le(fmin, t1[i])) return false;
+        if (std::isfinite(r.tmax) && !le(t0[i], fmax)) return false;
+        for (int j = 0; j < n; ++j)
+            if (!le(t0[i], t1[j])) return false;
+    }
+    return r.tmin <= r.tmax;
+}
+
+struct Gen {
+    std::mt19937_64 rng;
+    explicit Gen(uint64_t seed) : rng(seed) {}
+    int irange(int a, int b) { return std::uniform_int_distribution<int>(a, b)(rng); }
+    float uni(float a, float b) { return std::uniform_real_distribution<float>(a, b)(rng); }
+    bool coin(double p = 0.5) { return std::bernoulli_distribution(p)(rng); }
+};
+
+// A random node at scale 2^k: 8 slots (some empty, some internal, leaves otherwise),
+// some flat children (qlo == qhi) and full-range ones.
+CwbvhNode random_node(Gen& g, int k) {
+    CwbvhNode n{};
+    const float scale = std::ldexp(1.0f, k);
+    for (int a = 0; a < 3; ++a) {
+        n.p[a] = g.uni(-4, 4) * scale;
+        n.e[a] = uint8_t(std::clamp(127 + k - 8 + g.irange(-2, 2), 1, 254));
+        if (g.coin(0.05)) n.e[a] = 1;  // flat axis: tiny exponent
+    }
+    int tri_off = 0;
+    for (int s = 0; s < 8; ++s) {
+        const int kind = g.irange(0, 5);  // 0 empty, 1-2 internal, 3-5 leaf
+        if (kind == 0) continue;
+        if (kind <= 2) {
+            n.meta[s] = make_meta_internal(s);
+            n.imask |= uint8_t(1u << s);
+        } else {
+            n.meta[s] = make_meta_leaf(1, tri_off++);
+        }
+        for (int a = 0; a < 3; ++a) {
+            int lo = g.irange(0, 255), hi = g.irange(0, 255);
+            if (lo > hi) std::swap(lo, hi);
+            if (g.coin(0.15)) hi = lo;              // flat
+            if (g.coin(0.05)) lo = 0, hi = 255;     // full
+            n.q_lo[a][s] = uint8_t(lo);
+            n.q_hi[a][s] = uint8_t(hi);
+        }
+    }
+    return n;
+}
+
+float random_dir_component(Gen& g) {
+    switch (g.irange(0, 9)) {
+        case 0: return 0.0f;
+        case 1: return -0.0f;
+        case 2: return float(g.irange(-3, 3));
+        case 3: return g.uni(-1, 1) * std::ldexp(1.0f, g.irange(-40, -10));  // nearly axis-parallel
+        default: return g.uni(-1, 1);
+    }
+}
+
+TEST(NodeIntersect, NeverMissesExactlyHitChild) {
+    Gen g(12345);
+    uint64_t tested = 0, exact_hits = 0, misses = 0, extra = 0;
+    for (int iter = 0; iter < 60000; ++iter) {
+        const int k = g.coin(0.2) ? g.irange(-60, 60) : g.irange(-4, 4);
+        const CwbvhNode n = random_node(g, k);
+        // Pick a target: a decoded corner, face point or interior point of a random
+        // non-empty slot; aim at it from a random origin, or start on/inside the box.
+        int s = g.irange(0, 7);
+        for (int t = 0; t < 8 && n.meta[s] == 0; ++t) s = (s + 1) & 7;
+        if (n.meta[s] == 0) continue;
+        float lo[3], hi[3], target[3];
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = decode_plane(n.p[a], n.e[a], n.q_lo[a][s]);
+            hi[a] = decode_plane(n.p[a], n.e[a], n.q_hi[a][s]);
+            switch (g.irange(0, 3)) {
+                case 0: target[a] = lo[a]; break;
+                case 1: target[a] = hi[a]; break;
+                case 2: target[a] = std::nextafter(hi[a], INFINITY); break;  // just outside
+                default: target[a] = lo[a] + (hi[a] - lo[a]) * g.uni(0, 1); break;
+            }
+        }
+        Ray r;
+        for (int a = 0; a < 3; ++a) r.dir[a] = random_dir_component(g);
+        if (r.dir[0] == 0 && r.dir[1] == 0 && r.dir[2] == 0) r.dir[g.irange(0, 2)] = 1.0f;
+        const int start = g.irange(0, 3);
+        const float dist = std::ldexp(g.uni(0.5f, 8.0f), k);
+        for (int a = 0; a < 3; ++a) {
+            if (start == 0) r.org[a] = target[a];  // on the box (corner/face) or just outside
+            else r.org[a] = target[a] - dist * r.dir[a];  // rounded: passes near the target
+        }
+        r.tmin = g.coin(0.8) ? 0.0f : -dist;
+        r.tmax = g.coin(0.6) ? INFINITY : (g.coin() ? 0.0f : dist * g.uni(0.5f, 2.0f));
+        if (!ray_is_traceable(r)) continue;
+        const NodeRay nr = make_node_ray(r);
+        const uint32_t mask = intersect_node(n, nr, r.tmin, r.tmax);
+        for (int c = 0; c < 8; ++c) {
+            if (n.meta[c] == 0) continue;
+            float clo[3], chi[3];
+            for (int a = 0; a < 3; ++a) {
+                clo[a] = decode_plane(n.p[a], n.e[a], n.q_lo[a][c]);
+                chi[a] = decode_plane(n.p[a], n.e[a], n.q_hi[a][c]);
+            }
+            const bool exact = exact_box_hit(clo, chi, r);
+            const bool internal = (n.imask >> c) & 1u;
+            const uint32_t bit = internal ? (1u << (24 + (c ^ nr.octinv))) : (1u << (n.meta[c] & 0x1F));
+            const bool got = (mask & bit) != 0;
+            ++tested;
+            exact_hits += exact;
+            if (exact && !got) {
+                ++misses;
+                if (misses <= 5)
+                    ADD_FAILURE() << "missed slot " << c << " iter " << iter << " k " << k << " dir " << r.dir[0]
+                                  << "," << r.dir[1] << "," << r.dir[2] << " tmin " << r.tmin << " tmax " << r.tmax;
+            }
+            if (!exact && got) ++extra;
+        }
+    }
+    EXPECT_EQ(misses, 0u);
+    std::printf("node test: %llu child tests, %llu exact hits, %llu misses, %llu conservative extras (%.3f%%)\n",
+                (unsigned long long)tested, (unsigned long long)exact_hits, (unsigned long long)misses,
+                (unsigned long long)extra, 100.0 * double(extra) / double(tested));
+    EXPECT_GT(exact_hits, tested / 10);
+}
+
+TEST(NodeIntersect, MetaDecodeSetsPaperBits) {
+    // A node whose 8 children all contain the origin: every bit must come out.
+    CwbvhNode n{};
+    for (int a = 0; a < 3; ++a) n.e[a] = 127;
+    n.meta[0] = make_meta_leaf(3, 0);
+    n.meta[1] = make_meta_leaf(2, 3);
+    n.meta[2] = make_meta_leaf(1, 23);
+    for (int s = 3; s < 8; ++s) {
+        n.meta[s] = make_meta_internal(s);
+        n.imask |= uint8_t(1u << s);
+    }
+    for (int s = 0; s < 8; ++s)
+        for (int a = 0; a < 3; ++a) n.q_hi[a][s] = 10;
+    for (int oct = 0; oct < 8; ++oct) {
+        const float o[3] = {1, 1, 1};
+        const float d[3] = {(oct & 4) ? -1.f : 1.f, (oct & 2) ? -1.f : 1.f, (oct & 1) ? -1.f : 1.f};
+        Ray r{{o[0], o[1], o[2]}, 0.0f, {d[0], d[1], d[2]}, INFINITY};
+        const NodeRay nr = make_node_ray(r);
+        EXPECT_EQ(nr.octinv, 7u - uint32_t(oct));
+        uint32_t expect = 0x1Fu | (1u << 23);
+        for (int s = 3; s < 8; ++s) expect |= 1u << (24 + (s ^ (7 - oct)));
+        EXPECT_EQ(intersect_node(n, nr, r.tmin, r.tmax), expect) << "octant " << oct;
+    }
+}
+
+TEST(NodeIntersect, FlatAndZeroDirection) {
+    // A flat child (qlo == qhi on z) hit by a ray in its plane (dz = +0 and -0), and
+    // a ray crossing it (tnear == tfar): both must hit (<=, not <).
+    CwbvhNode n{};
+    for (int a = 0; a < 3; ++a) n.e[a] = 127;
+    n.meta[0] = make_meta_leaf(1, 0);
+    for (int a = 0; a < 3; ++a) {
+        n.q_lo[a][0] = 2;
+        n.q_hi[a][0] = 6;
+    }
+    n.q_lo[2][0] = n.q_hi[2][0] = 4;
+    for (float dz : {0.0f, -0.0f}) {
+        Ray r{{0, 3, 4}, 0.0f, {1, 0, dz}, INFINITY};
+        EXPECT_EQ(intersect_node(n, make_node_ray(r), r.tmin, r.tmax) & 1u, 1u);
+        r.org[2] = std::nextafter(4.0f, 5.0f);
+        EXPECT_EQ(intersect_node(n, make_node_ray(r), r.tmin, r.tmax) & 1u, 0u);  // exact: outside
+    }
+    Ray r{{3, 3, 0}, 0.0f, {0, 0, 1}, INFINITY};
+    EXPECT_EQ(intersect_node(n, make_node_ray(r), r.tmin, r.tmax) & 1u, 1u);
+    r.tmin = r.tmax = 4.0f;  // point query exactly on the flat box
+    EXPECT_EQ(intersect_node(n, make_node_ray(r), r.tmin, r.tmax) & 1u, 1u);
+}
+
+}  // namespace
+}  // namespace cwbvh::test
