@@ -1,0 +1,164 @@
+#include "cwbvh/describe.h"
+
+#include <cinttypes>
+#include <cstdio>
+#include <cstring>
+
+#include "cwbvh/node_decode.h"
+
+namespace cwbvh {
+namespace {
+
+std::string fmt(const char* f, auto... args) {
+    char buf[1024];
+    std::snprintf(buf, sizeof buf, f, args...);
+    return buf;
+}
+
+/// Shortest text that reads back as the same float.
+std::string num(float v) { return fmt("%.9g", double(v)); }
+std::string num(double v) { return fmt("%.17g", v); }
+
+template <class T>
+const T* section_or_null(const FileLayout& l, uint32_t type, T& storage) {
+    const SectionEntry* e = l.find(type);
+    if (e == nullptr || e->size < sizeof(T)) return nullptr;
+    std::memcpy(&storage, l.payload(*e).data(), sizeof(T));
+    return &storage;
+}
+
+template <class T>
+T element(const FileLayout& l, const SectionEntry& e, uint64_t i) {
+    T v;
+    std::memcpy(&v, l.payload(e).data() + i * sizeof(T), sizeof(T));
+    return v;
+}
+
+std::string vec3(const float* v) { return "[" + num(v[0]) + ", " + num(v[1]) + ", " + num(v[2]) + "]"; }
+
+const char* builder_name(uint32_t b) { return b == kBuilderSbvh ? "sbvh" : b == kBuilderEmbree ? "embree" : "unknown"; }
+const char* collapse_name(uint32_t c) {
+    return c == kCollapseOptimal ? "optimal" : c == kCollapseGreedy ? "greedy" : "unknown";
+}
+
+void node_json(std::string& o, const CwbvhNode& n) {
+    o += "{\"p\": " + vec3(n.p) + fmt(", \"e\": [%u, %u, %u], \"imask\": %u, \"child_base\": %u, \"tri_base\": %u",
+                                      n.e[0], n.e[1], n.e[2], n.imask, n.child_base, n.tri_base);
+    o += ", \"slots\": [";
+    for (int s = 0; s < kWidth; ++s) {
+        const uint8_t m = n.meta[s];
+        if (s) o += ", ";
+        o += fmt("{\"meta\": %u", m);
+        if (meta_is_empty(m)) {
+            o += ", \"kind\": \"empty\"}";
+            continue;
+        }
+        if (meta_is_internal(m))
+            o += fmt(", \"kind\": \"internal\", \"child\": %u", internal_child_index(n, s));
+        else
+            o += fmt(", \"kind\": \"leaf\", \"first_triangle\": %u, \"count\": %d",
+                     n.tri_base + uint32_t(meta_leaf_offset(m)), meta_leaf_count(m));
+        float lo[3], hi[3];
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = decode_plane(n.p[a], n.e[a], n.q_lo[a][s]);
+            hi[a] = decode_plane(n.p[a], n.e[a], n.q_hi[a][s]);
+        }
+        o += ", \"lo\": " + vec3(lo) + ", \"hi\": " + vec3(hi) + "}";
+    }
+    o += "]}";
+}
+
+}  // namespace
+
+std::string describe_text(const FileLayout& l) {
+    const FileHeader& h = l.header;
+    std::string o = fmt("version %u.%u, %" PRIu64 " bytes, %u sections\n", h.version_major, h.version_minor,
+                        h.file_size, h.section_count);
+    o += "  type  flags      offset        size  elem       count  checksum\n";
+    for (const SectionEntry& e : l.table)
+        o += fmt("  %-4s  %5u  %10" PRIu64 "  %10" PRIu64 "  %4u  %10" PRIu64 "  %016" PRIx64 "\n",
+                 section_name(e.type).c_str(), e.flags, e.offset, e.size, e.element_size, e.element_count, e.checksum);
+    SceneBounds b;
+    if (section_or_null(l, kSectionBounds, b))
+        o += "bounds: lo " + vec3(b.lo) + " hi " + vec3(b.hi) + "\n";
+    BuildInfo bi;
+    if (section_or_null(l, kSectionBuildInfo, bi)) {
+        o += fmt("build: builder %s, collapse %s, split_alpha %s, C_node %s, C_prim %s, max leaf %u\n",
+                 builder_name(bi.builder), collapse_name(bi.collapse), num(bi.split_alpha).c_str(),
+                 num(bi.cost_node).c_str(), num(bi.cost_prim).c_str(), bi.max_leaf_triangles);
+        o += fmt("  input triangles %" PRIu64 ", dropped non-finite %" PRIu64 ", degenerate %" PRIu64
+                 ", skipped primitives %" PRIu64 "\n",
+                 bi.input_triangles, bi.dropped_nonfinite, bi.dropped_degenerate, bi.skipped_primitives);
+        o += fmt("  triangles %" PRIu64 ", references %" PRIu64 ", binary nodes %" PRIu64 ", wide nodes %" PRIu64
+                 "\n",
+                 bi.triangles, bi.references, bi.binary_nodes, bi.wide_nodes);
+        o += "  SAH binary " + num(bi.sah_binary) + ", SAH wide " + num(bi.sah_wide) + ", avg children " +
+             num(bi.avg_children) + "\n";
+    }
+    return o;
+}
+
+std::string describe_json(const FileLayout& l, bool decode_content) {
+    const FileHeader& h = l.header;
+    std::string o = fmt("{\n  \"version\": [%u, %u],\n  \"file_size\": %" PRIu64 ",\n  \"sections\": [\n",
+                        h.version_major, h.version_minor, h.file_size);
+    for (size_t i = 0; i < l.table.size(); ++i) {
+        const SectionEntry& e = l.table[i];
+        o += fmt("    {\"type\": \"%s\", \"flags\": %u, \"offset\": %" PRIu64 ", \"size\": %" PRIu64
+                 ", \"element_size\": %u, \"element_count\": %" PRIu64 ", \"checksum\": \"%016" PRIx64 "\"}%s\n",
+                 section_name(e.type).c_str(), e.flags, e.offset, e.size, e.element_size, e.element_count, e.checksum,
+                 i + 1 < l.table.size() ? "," : "");
+    }
+    o += "  ]";
+    SceneBounds b;
+    if (section_or_null(l, kSectionBounds, b)) o += ",\n  \"bounds\": {\"lo\": " + vec3(b.lo) + ", \"hi\": " + vec3(b.hi) + "}";
+    BuildInfo bi;
+    if (section_or_null(l, kSectionBuildInfo, bi)) {
+        o += fmt(",\n  \"build_info\": {\"builder\": \"%s\", \"collapse\": \"%s\", ", builder_name(bi.builder),
+                 collapse_name(bi.collapse));
+        o += "\"split_alpha\": " + num(bi.split_alpha) + ", \"cost_node\": " + num(bi.cost_node) +
+             ", \"cost_prim\": " + num(bi.cost_prim);
+        o += fmt(", \"max_leaf_triangles\": %u, \"input_triangles\": %" PRIu64 ", \"dropped_nonfinite\": %" PRIu64
+                 ", \"dropped_degenerate\": %" PRIu64 ", \"skipped_primitives\": %" PRIu64 ", \"triangles\": %" PRIu64
+                 ", \"references\": %" PRIu64 ", \"binary_nodes\": %" PRIu64 ", \"wide_nodes\": %" PRIu64,
+                 bi.max_leaf_triangles, bi.input_triangles, bi.dropped_nonfinite, bi.dropped_degenerate,
+                 bi.skipped_primitives, bi.triangles, bi.references, bi.binary_nodes, bi.wide_nodes);
+        o += ", \"sah_binary\": " + num(bi.sah_binary) + ", \"sah_wide\": " + num(bi.sah_wide) +
+             ", \"avg_children\": " + num(bi.avg_children) + "}";
+    }
+    if (decode_content) {
+        auto list = [&](const char* key, uint32_t type, auto one) {
+            const SectionEntry* e = l.find(type);
+            if (e == nullptr) return;
+            o += fmt(",\n  \"%s\": [", key);
+            for (uint64_t i = 0; i < e->element_count; ++i) {
+                o += i ? ",\n    " : "\n    ";
+                one(*e, i);
+            }
+            o += "\n  ]";
+        };
+        list("nodes", kSectionNodes, [&](const SectionEntry& e, uint64_t i) { node_json(o, element<CwbvhNode>(l, e, i)); });
+        list("triangles", kSectionTriangles, [&](const SectionEntry& e, uint64_t i) {
+            const auto t = element<TriangleRecord>(l, e, i);
+            o += "{\"v0\": " + vec3(t.v0) + ", \"v1\": " + vec3(t.v1) + ", \"v2\": " + vec3(t.v2) +
+                 fmt(", \"prim\": %u}", t.prim);
+        });
+        list("source_map", kSectionSourceMap, [&](const SectionEntry& e, uint64_t i) {
+            const auto r = element<SourceRef>(l, e, i);
+            o += fmt("{\"input\": %u, \"mesh\": %u, \"primitive\": %u, \"triangle\": %u}", r.input, r.mesh,
+                     r.primitive, r.triangle);
+        });
+        list("bvh2", kSectionBvh2, [&](const SectionEntry& e, uint64_t i) {
+            const auto n = element<Bvh2Node>(l, e, i);
+            const float c0lo[3] = {n.c0_lo_x, n.c0_lo_y, n.c0_lo_z}, c0hi[3] = {n.c0_hi_x, n.c0_hi_y, n.c0_hi_z};
+            const float c1lo[3] = {n.c1_lo_x, n.c1_lo_y, n.c1_lo_z}, c1hi[3] = {n.c1_hi_x, n.c1_hi_y, n.c1_hi_z};
+            o += "{\"child\": [" + std::to_string(n.child[0]) + ", " + std::to_string(n.child[1]) + "], \"c0\": {\"lo\": " +
+                 vec3(c0lo) + ", \"hi\": " + vec3(c0hi) + "}, \"c1\": {\"lo\": " + vec3(c1lo) + ", \"hi\": " +
+                 vec3(c1hi) + "}}";
+        });
+    }
+    o += "\n}\n";
+    return o;
+}
+
+}  // namespace cwbvh

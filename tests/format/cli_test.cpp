@@ -1,0 +1,88 @@
+// The `cwbvh` command: exit codes and one-line errors.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cstdio>
+
+#include "format/test_util.h"
+
+namespace cwbvh {
+namespace {
+
+struct ToolRun {
+    int code;
+    std::string out;  // stdout + stderr
+};
+
+ToolRun run(const std::string& args) {
+    const std::string cmd = std::string(CWBVH_BIN_DIR) + "/cwbvh " + args + " 2>&1";
+    FILE* p = popen(cmd.c_str(), "r");
+    if (p == nullptr) return {-1, ""};
+    std::string out;
+    char buf[4096];
+    size_t n;
+    while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+    const int status = pclose(p);
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+size_t lines(const std::string& s) { return size_t(std::count(s.begin(), s.end(), '\n')); }
+
+TEST(Cli, ValidateValidFile) {
+    const std::string path = test::write_temp("cli_valid.cwbvh", test::synthetic_file());
+    const ToolRun r = run("validate " + path);
+    EXPECT_EQ(r.code, 0) << r.out;
+    EXPECT_EQ(r.out, path + ": valid\n");
+}
+
+TEST(Cli, ValidateInvalidFileGivesOneLine) {
+    std::vector<uint8_t> bytes = test::synthetic_file();
+    test::edit_element<CwbvhNode>(bytes, kSectionNodes, 0, [](CwbvhNode& n) { n.child_base = 0; });
+    const std::string path = test::write_temp("cli_bad.cwbvh", bytes);
+    const ToolRun r = run("validate " + path);
+    EXPECT_EQ(r.code, 1);
+    EXPECT_EQ(lines(r.out), 1u) << r.out;
+    EXPECT_EQ(r.out.rfind("cwbvh: error: " + path + ": section NODE: node 0", 0), 0u) << r.out;
+    EXPECT_NE(r.out.find("[rule 5105]"), std::string::npos) << r.out;
+    const ToolRun missing = run("validate " + test::temp_dir() + "/nope.cwbvh");
+    EXPECT_EQ(missing.code, 1);
+    EXPECT_EQ(lines(missing.out), 1u) << missing.out;
+}
+
+TEST(Cli, NoChecksums) {
+    std::vector<uint8_t> bytes = test::synthetic_file();
+    const SectionEntry tris = test::entry(bytes, test::find_entry(bytes, kSectionTriangles));
+    bytes[tris.offset] ^= 1;  // lowest mantissa bit of v0.x
+    const std::string path = test::write_temp("cli_sum.cwbvh", bytes);
+    EXPECT_EQ(run("validate " + path).code, 1);
+    EXPECT_EQ(run("validate --no-checksums " + path).code, 0);
+}
+
+TEST(Cli, Info) {
+    const std::string path = test::write_temp("cli_info.cwbvh", test::synthetic_file());
+    const ToolRun text = run("info " + path);
+    EXPECT_EQ(text.code, 0) << text.out;
+    EXPECT_NE(text.out.find("version 1.0"), std::string::npos) << text.out;
+    EXPECT_NE(text.out.find("NODE"), std::string::npos);
+    EXPECT_NE(text.out.find("bounds:"), std::string::npos);
+    EXPECT_NE(text.out.find("C_prim 0.300000012"), std::string::npos) << text.out;
+    const ToolRun json = run("info --json " + path);
+    EXPECT_EQ(json.code, 0);
+    EXPECT_NE(json.out.find("\"type\": \"TRIS\""), std::string::npos) << json.out;
+    EXPECT_NE(json.out.find("\"build_info\""), std::string::npos);
+}
+
+TEST(Cli, UsageErrors) {
+    EXPECT_EQ(run("").code, 2);
+    EXPECT_EQ(run("frobnicate x").code, 2);
+    EXPECT_EQ(run("info").code, 2);
+    EXPECT_EQ(run("info a b").code, 2);
+    EXPECT_EQ(run("validate").code, 2);
+    EXPECT_EQ(run("validate --bogus x").code, 2);
+    EXPECT_EQ(run("--help").code, 0);
+}
+
+}  // namespace
+}  // namespace cwbvh

@@ -1,0 +1,50 @@
+// `cwbvh`: dispatch to one verb. To add a verb, add its run_* to commands.h
+// and one row to kVerbs.
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+#include "commands.h"
+
+namespace cwbvh::tool {
+namespace {
+
+struct Verb {
+    const char* name;
+    int (*run)(int argc, char** argv);
+    const char* usage;
+};
+
+constexpr Verb kVerbs[] = {
+    {"info", run_info, "info FILE [--json]          sections, bounds and build info"},
+    {"validate", run_validate, "validate FILE... [--no-checksums]   check a file against the spec"},
+};
+
+void print_usage(FILE* out) {
+    std::fprintf(out, "usage: cwbvh <verb> [args]\nverbs:\n");
+    for (const Verb& v : kVerbs) std::fprintf(out, "  cwbvh %s\n", v.usage);
+}
+
+}  // namespace
+
+int error(int code, const char* message) {
+    std::fprintf(stderr, "cwbvh: error: %s\n", message);
+    return code;
+}
+
+}  // namespace cwbvh::tool
+
+int main(int argc, char** argv) {
+    using namespace cwbvh::tool;
+    if (argc < 2) {
+        print_usage(stderr);
+        return kExitUsage;
+    }
+    if (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0 || std::strcmp(argv[1], "help") == 0) {
+        print_usage(stdout);
+        return kExitOk;
+    }
+    for (const Verb& v : kVerbs)
+        if (std::strcmp(argv[1], v.name) == 0) return v.run(argc - 1, argv + 1);
+    return error(kExitUsage, ("unknown verb '" + std::string(argv[1]) + "' (try cwbvh --help)").c_str());
+}
