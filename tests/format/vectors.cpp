@@ -1,0 +1,78 @@
+#include "format/vectors.h"
+
+#include "cwbvh/node_decode.h"
+#include "format/test_util.h"
+
+namespace cwbvh::test {
+namespace {
+
+/// One triangle (0,0,0) (1,0,0) (0,1,0); a root whose slot 0 is a leaf.
+/// x, y: extent 1 -> e = 120 (scale 2^-7), q_hi = 128 decodes to exactly 1.
+/// z: extent 0 -> e = 1 (the smallest scale), q_lo = q_hi = 0.
+SceneData single_triangle() {
+    SceneData s;
+    CwbvhNode root{};
+    root.e[0] = root.e[1] = 120;
+    root.e[2] = 1;
+    root.meta[0] = make_meta_leaf(1, 0);
+    root.q_hi[0][0] = 128;
+    root.q_hi[1][0] = 128;
+    s.nodes.push_back(root);
+    s.triangles.push_back(TriangleRecord{{0, 0, 0}, 0, {1, 0, 0}, 0, {0, 1, 0}, 0});
+    s.source_map.push_back({0, 0, 0, 0});
+    s.bounds = SceneBounds{{0, 0, 0}, {1, 1, 0}};
+    s.bvh2.push_back(Bvh2Node{0, 1, 0, 1, 0, 1, 0, 1, 0, 0, 0, 0, {~0, ~0}, {0, 0}});
+    s.vertices = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    s.indices = {0, 1, 2};
+    s.source_names = std::string("triangle.obj") + '\0';
+    BuildInfo b{};
+    b.builder = kBuilderSbvh;
+    b.collapse = kCollapseOptimal;
+    b.split_alpha = 1e-5f;
+    b.cost_node = 1.0f;
+    b.cost_prim = 0.3f;
+    b.max_leaf_triangles = 3;
+    b.input_triangles = b.triangles = b.references = 1;
+    b.binary_nodes = 1;
+    b.wide_nodes = 1;
+    b.sah_binary = 0.3;  // one leaf with one triangle: C_prim * 1 * A/A
+    b.sah_wide = 1.3;    // the root node (C_node) + its leaf
+    b.avg_children = 1;
+    s.build_info = b;
+    return s;
+}
+
+}  // namespace
+
+std::vector<Vector> make_vectors() {
+    std::vector<Vector> v;
+    const SceneData one = single_triangle();
+    v.push_back({"single_triangle", file_bytes(one)});
+
+    SyntheticOptions o;
+    o.triangles = 30;
+    const SceneData small = make_synthetic_scene(o);
+    v.push_back({"two_level", file_bytes(small)});
+
+    {  // root child_base points at the root itself
+        std::vector<uint8_t> f = file_bytes(small);
+        edit_element<CwbvhNode>(f, kSectionNodes, 0, [](CwbvhNode& n) { n.child_base = 0; });
+        v.push_back({"invalid_5105_child_order", f});
+    }
+    {  // a future major version
+        std::vector<uint8_t> f = file_bytes(one);
+        FileHeader h = header_of(f);
+        h.version_major = 2;
+        set_header(f, h);
+        reseal(f);
+        v.push_back({"invalid_2003_major_version", f});
+    }
+    {  // truncated by 100 bytes
+        std::vector<uint8_t> f = file_bytes(one);
+        f.resize(f.size() - 100);
+        v.push_back({"invalid_3002_truncated", f});
+    }
+    return v;
+}
+
+}  // namespace cwbvh::test
