@@ -1,0 +1,62 @@
+// The whole compile pipeline behind `cwbvhc`: import -> SBVH -> collapse ->
+// slots -> quantize/encode -> write. main.cpp only parses arguments.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "cwbvh/format.h"
+
+namespace cwbvh::compiler {
+
+struct CompileOptions {
+    std::vector<std::string> inputs;
+    std::string output;
+    int threads = 0;                      ///< 0: all cores; output bytes never depend on it
+    BuilderKind builder = kBuilderSbvh;
+    CollapseKind collapse = kCollapseOptimal;
+    float split_alpha = 1e-5f;            ///< SBVH overlap threshold (Stich et al. 2009)
+    bool keep_sbvh = false;               ///< write the optional BVH2 section
+    bool keep_mesh = false;               ///< write the optional VERT/INDX sections
+    bool verify = true;                   ///< decode every node and check containment before writing
+};
+
+/// Everything `--stats-json` reports.
+struct CompileStats {
+    uint64_t input_triangles = 0;
+    std::map<std::string, uint64_t> dropped_triangles;
+    std::map<std::string, uint64_t> skipped_primitives;
+    uint64_t triangles = 0;
+    uint64_t references = 0;
+    uint64_t spatial_splits = 0;
+    uint64_t binary_nodes = 0;
+    uint64_t wide_nodes = 0;
+    double avg_children = 0;
+    uint32_t max_leaf_triangles = 0;
+    double sah_binary = 0;
+    double sah_wide = 0;
+    std::vector<std::pair<std::string, uint64_t>> bytes;     ///< section -> bytes, file order
+    std::vector<std::pair<std::string, double>> seconds;     ///< phase -> seconds, run order
+    uint64_t file_bytes = 0;
+    uint64_t peak_rss_bytes = 0;
+    std::vector<std::string> warnings;
+};
+
+/// Called when a phase starts (done=false) and ends (done=true).
+using PhaseCallback = std::function<void(const std::string& phase, bool done, double seconds)>;
+
+/// Runs the pipeline. On bad input returns false and sets `error` to one line
+/// naming the file and what is wrong.
+[[nodiscard]] bool compile(const CompileOptions& options, CompileStats& stats, std::string& error,
+                           const PhaseCallback& on_phase = {});
+
+/// JSON for --stats-json (keys documented in README).
+std::string stats_to_json(const CompileStats& stats);
+
+/// Human summary table printed at the end of a compile.
+std::string stats_to_table(const CompileStats& stats);
+
+}  // namespace cwbvh::compiler

@@ -1,0 +1,47 @@
+// Last two phases of cwbvhc: encode the wide tree into file sections, then
+// write them through format/'s Writer.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "cwbvh/compiler/build.h"
+#include "cwbvh/compiler/compile.h"
+#include "cwbvh/compiler/encode.h"
+#include "cwbvh/compiler/model.h"
+
+namespace cwbvh::compiler {
+
+struct EmitInput {
+    const CompileOptions* options = nullptr;
+    const Scene* scene = nullptr;
+    const BinaryBvh* binary = nullptr;
+    const WideBvh* wide = nullptr;
+    const CollapseConfig* collapse = nullptr;
+    const SbvhConfig* sbvh = nullptr;
+    double sah_binary = 0;
+};
+
+struct EmitResult {
+    EncodedTree tree;
+    BuildInfo build_info{};
+    SceneBounds bounds{};
+    std::vector<uint8_t> source_names;  ///< SRCN payload
+    uint64_t wide_nodes = 0;
+    double avg_children = 0;
+    uint32_t max_leaf_triangles = 0;
+    double sah_wide = 0;
+};
+
+/// Quantizes and lays out the tree (NODE, TRIS, optional BVH2), verifies it
+/// when options->verify, and fills the BILD/BNDS/SRCN payloads.
+[[nodiscard]] bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error);
+
+/// Writes the file atomically. `bytes` gets (section name, payload bytes) in file order.
+[[nodiscard]] bool write_scene(const EmitInput& in, const EmitResult& encoded,
+                               std::vector<std::pair<std::string, uint64_t>>& bytes, uint64_t& file_bytes,
+                               std::string& error);
+
+}  // namespace cwbvh::compiler

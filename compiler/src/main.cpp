@@ -1,0 +1,149 @@
+// cwbvhc: compile meshes into a .cwbvh file. Argument parsing and exit codes only;
+// the pipeline lives in compile.cpp.
+//   exit 0: success   exit 1: bad input (one line on stderr)   exit 2: usage error
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <memory>
+#include <string>
+
+#include <tbb/global_control.h>
+
+#include "cwbvh/compiler/compile.h"
+
+namespace {
+
+constexpr const char* kUsage =
+    "usage: cwbvhc INPUT... -o OUT.cwbvh [options]\n"
+    "\n"
+    "Compiles triangle meshes (glTF/GLB incl. Draco, OBJ, PLY, OFF, STL, DRC) into one .cwbvh file.\n"
+    "\n"
+    "options:\n"
+    "  -o, --output PATH      output file (required)\n"
+    "  --threads N            worker threads (default: all cores; output is identical for any N)\n"
+    "  --builder sbvh|embree  binary builder (default sbvh)\n"
+    "  --collapse optimal|greedy  binary->8-wide collapse (default optimal: Ylitie et al. 2017 DP)\n"
+    "  --split-alpha A        SBVH spatial-split overlap threshold (default 1e-5)\n"
+    "  --keep-sbvh            also store the binary SBVH (BVH2 section, for the baseline kernel)\n"
+    "  --keep-mesh            also store the source mesh (VERT/INDX sections)\n"
+    "  --stats-json PATH      write build statistics as JSON\n"
+    "  --no-verify            skip the decode-and-check pass over the encoded nodes\n"
+    "  --quiet                no progress, no summary\n"
+    "  -h, --help             this text\n";
+
+int usage_error(const std::string& message) {
+    std::fprintf(stderr, "cwbvhc: %s\n(run 'cwbvhc --help' for usage)\n", message.c_str());
+    return 2;
+}
+
+bool parse_int(const std::string& s, int& out) {
+    char* end = nullptr;
+    const long v = std::strtol(s.c_str(), &end, 10);
+    if (s.empty() || *end != '\0' || v < 0 || v > 4096) return false;
+    out = int(v);
+    return true;
+}
+
+bool parse_float(const std::string& s, float& out) {
+    char* end = nullptr;
+    const float v = std::strtof(s.c_str(), &end);
+    if (s.empty() || *end != '\0' || !(v >= 0.0f) || !(v <= 1.0f)) return false;
+    out = v;
+    return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    using namespace cwbvh::compiler;
+    CompileOptions options;
+    std::string stats_json;
+    bool quiet = false;
+
+    for (int i = 1; i < argc; ++i) {
+        const std::string arg = argv[i];
+        auto value = [&](std::string& out) {
+            if (i + 1 >= argc) return false;
+            out = argv[++i];
+            return true;
+        };
+        std::string v;
+        if (arg == "-h" || arg == "--help") {
+            std::fputs(kUsage, stdout);
+            return 0;
+        } else if (arg == "-o" || arg == "--output") {
+            if (!value(options.output)) return usage_error("-o needs a path");
+        } else if (arg == "--threads") {
+            if (!value(v) || !parse_int(v, options.threads) || options.threads == 0)
+                return usage_error("--threads needs a positive integer");
+        } else if (arg == "--builder") {
+            if (!value(v)) return usage_error("--builder needs sbvh or embree");
+            if (v == "sbvh") options.builder = cwbvh::kBuilderSbvh;
+            else if (v == "embree") options.builder = cwbvh::kBuilderEmbree;
+            else return usage_error("unknown builder '" + v + "' (expected sbvh or embree)");
+        } else if (arg == "--collapse") {
+            if (!value(v)) return usage_error("--collapse needs optimal or greedy");
+            if (v == "optimal") options.collapse = cwbvh::kCollapseOptimal;
+            else if (v == "greedy") options.collapse = cwbvh::kCollapseGreedy;
+            else return usage_error("unknown collapse '" + v + "' (expected optimal or greedy)");
+        } else if (arg == "--split-alpha") {
+            if (!value(v) || !parse_float(v, options.split_alpha))
+                return usage_error("--split-alpha needs a number in [0, 1]");
+        } else if (arg == "--keep-sbvh") {
+            options.keep_sbvh = true;
+        } else if (arg == "--keep-mesh") {
+            options.keep_mesh = true;
+        } else if (arg == "--stats-json") {
+            if (!value(stats_json)) return usage_error("--stats-json needs a path");
+        } else if (arg == "--no-verify") {
+            options.verify = false;
+        } else if (arg == "--quiet" || arg == "-q") {
+            quiet = true;
+        } else if (!arg.empty() && arg[0] == '-' && arg != "-") {
+            return usage_error("unknown option '" + arg + "'");
+        } else {
+            options.inputs.push_back(arg);
+        }
+    }
+    if (options.inputs.empty()) return usage_error("no input files");
+    if (options.output.empty()) return usage_error("no output file (-o OUT.cwbvh)");
+
+    std::unique_ptr<tbb::global_control> thread_limit;
+    if (options.threads > 0)
+        thread_limit = std::make_unique<tbb::global_control>(
+            tbb::global_control::max_allowed_parallelism, size_t(options.threads));
+
+    const bool tty = !quiet && isatty(STDERR_FILENO);
+    PhaseCallback on_phase;
+    if (tty) {
+        on_phase = [](const std::string& phase, bool done, double seconds) {
+            if (!done)
+                std::fprintf(stderr, "\r\033[K[cwbvhc] %s ...", phase.c_str());
+            else
+                std::fprintf(stderr, "\r\033[K[cwbvhc] %-10s %8.3f s\n", phase.c_str(), seconds);
+        };
+    }
+
+    CompileStats stats;
+    std::string error;
+    if (!compile(options, stats, error, on_phase)) {
+        if (tty) std::fputs("\n", stderr);
+        std::fprintf(stderr, "cwbvhc: error: %s\n", error.c_str());
+        return 1;
+    }
+    if (!quiet) {
+        for (const auto& w : stats.warnings) std::fprintf(stderr, "cwbvhc: warning: %s\n", w.c_str());
+        std::fputs(stats_to_table(stats).c_str(), stdout);
+    }
+    if (!stats_json.empty()) {
+        std::ofstream out(stats_json, std::ios::binary);
+        out << stats_to_json(stats);
+        if (!out) {
+            std::fprintf(stderr, "cwbvhc: error: %s: cannot write statistics\n", stats_json.c_str());
+            return 1;
+        }
+    }
+    return 0;
+}
