@@ -66,13 +66,17 @@ inline Scene random_soup(int n, uint64_t seed, float size = 0.05f) {
     return s;
 }
 
-/// Long thin diagonal triangles: their boxes overlap massively, spatial
-/// splits pay off (Stich et al. 2009, Figure 1).
-inline Scene sliver_scene(int n) {
+/// Long thin diagonal triangles at random places: their boxes overlap
+/// massively and spatial splits pay off (Stich et al. 2009, Figure 1).
+inline Scene sliver_scene(int n, uint64_t seed = 9) {
     Scene s;
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
     for (int i = 0; i < n; ++i) {
-        const float o = float(i) / float(n);
-        add_triangle(s, Vec3{0.0f, o, 0.0f}, Vec3{1.0f, o + 1.0f, 1.0f}, Vec3{1.0f, o + 1.0f + 0.5f / float(n), 1.0f});
+        const Vec3 a{u(rng), u(rng), u(rng)};
+        const float len = 0.2f + 0.3f * u(rng);
+        const Vec3 b{a[0] + len, a[1] + len, a[2] + len};
+        add_triangle(s, a, b, Vec3{b[0], b[1] + 0.002f, b[2]});
     }
     return s;
 }
