@@ -12,7 +12,7 @@
 // leaves (references of one triangle inside a leaf are stored once). A binary
 // leaf has C(n, i) = C_leaf(n). The root is forced internal (the traversal
 // starts with an internal node) and the tree is rebuilt by backtracking the
-// stored decisions from the root. O(n * 7 * 7) time, 64 bytes per node.
+// stored decisions from the root. O(n * 7 * 7) time, 72 bytes per binary node.
 #include <limits>
 
 #include "cwbvh/compiler/collapse.h"
