@@ -95,6 +95,18 @@ inline constexpr uint32_t kVertNonFinite = 5701;
 inline constexpr uint32_t kIndexRange = 5801;
 // 59xx: SRCN
 inline constexpr uint32_t kNamesTerminator = 5901;
+/// Every rule ID above (a test checks this list against the spec's table).
+inline constexpr uint32_t kAll[] = {
+    kOpenFailed, kNotRegularFile, kEmptyFile, kMapFailed, kWriteFailed, kBadMagic, kTruncatedHeader,
+    kUnsupportedMajor, kHeaderSize, kFileSize, kTableAlignment, kTableOutsideFile, kMetaChecksum,
+    kHeaderFlags, kHeaderReserved, kSectionFlags, kSectionReserved, kSectionAlignment, kSectionSize,
+    kSectionOutsideFile, kSectionOverlapsHeader, kSectionOverlap, kDuplicateSection, kUnknownRequiredSection,
+    kElementSize, kElementCount, kMissingSection, kNonZeroPadding, kSectionChecksum, kNodeExponent, kNodeMeta,
+    kNodeImask, kNodeChildRange, kNodeChildOrder, kNodeParents, kNodeLeafRange, kNodeLeafLayout,
+    kNodeTriangleUse, kNodePlaneOrder, kNodeEmptySlot, kNodeNonFinite, kTriPrim, kTriReserved, kTriNonFinite,
+    kPmapInput, kBoundsInvalid, kBuildReserved, kBvh2Child, kBvh2Leaf, kBvh2Reserved, kBvh2NonFinite,
+    kBvh2Parents, kVertNonFinite, kIndexRange, kNamesTerminator,
+};
 }  // namespace rule
 
 /// The result of an operation: kOk, or a status, a rule ID and a one-line

@@ -1,0 +1,65 @@
+// spec/cwbvh-format.md and the code agree: the rule table lists exactly the
+// rule IDs of status.h, and the header/entry tables give the struct offsets.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <regex>
+#include <set>
+#include <sstream>
+
+#include "cwbvh/format.h"
+#include "cwbvh/status.h"
+
+namespace cwbvh {
+namespace {
+
+std::string spec_text() {
+    std::ifstream in(std::string(CWBVH_SOURCE_DIR) + "/spec/cwbvh-format.md");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+TEST(Spec, RuleTableMatchesCode) {
+    const std::string spec = spec_text();
+    ASSERT_FALSE(spec.empty());
+    std::set<uint32_t> in_spec;
+    const std::regex row(R"(\n\| (\d{4}) \|)");
+    for (auto it = std::sregex_iterator(spec.begin(), spec.end(), row); it != std::sregex_iterator(); ++it)
+        in_spec.insert(uint32_t(std::stoul((*it)[1])));
+    const std::set<uint32_t> in_code(std::begin(rule::kAll), std::end(rule::kAll));
+    EXPECT_EQ(in_spec, in_code);
+}
+
+TEST(Spec, LayoutTablesMatchStructs) {
+    const std::string spec = spec_text();
+    auto has_row = [&](size_t offset, size_t size, const char* field) {
+        const std::string row = "| " + std::to_string(offset) + " | " + std::to_string(size) + " |";
+        const size_t at = spec.find(row + " ");
+        bool found = false;
+        for (size_t pos = at; pos != std::string::npos; pos = spec.find(row + " ", pos + 1)) {
+            const size_t eol = spec.find('\n', pos);
+            if (spec.substr(pos, eol - pos).find(field) != std::string::npos) found = true;
+        }
+        return found;
+    };
+#define CWBVH_ROW(T, f, name) EXPECT_TRUE(has_row(offsetof(T, f), sizeof(T::f), name)) << #T "::" #f
+    CWBVH_ROW(FileHeader, version_major, "`version_major`");
+    CWBVH_ROW(FileHeader, section_table_offset, "`section_table_offset`");
+    CWBVH_ROW(FileHeader, meta_checksum, "`meta_checksum`");
+    CWBVH_ROW(SectionEntry, element_count, "`element_count`");
+    CWBVH_ROW(SectionEntry, checksum, "`checksum`");
+    CWBVH_ROW(CwbvhNode, imask, "`imask`");
+    CWBVH_ROW(CwbvhNode, child_base, "`child_base`");
+    CWBVH_ROW(CwbvhNode, meta, "`meta`");
+    CWBVH_ROW(TriangleRecord, prim, "`prim`");
+    CWBVH_ROW(TriangleRecord, reserved2, "`reserved2`");
+    CWBVH_ROW(BuildInfo, wide_nodes, "`wide_nodes`");
+    CWBVH_ROW(BuildInfo, sah_binary, "`sah_binary`");
+    CWBVH_ROW(BuildInfo, reserved, "`reserved`");
+#undef CWBVH_ROW
+    EXPECT_TRUE(has_row(offsetof(CwbvhNode, q_hi) + 16, 8, "`q_hi[2]`"));
+}
+
+}  // namespace
+}  // namespace cwbvh
