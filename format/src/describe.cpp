@@ -34,7 +34,7 @@ T element(const FileLayout& l, const SectionEntry& e, uint64_t i) {
     return v;
 }
 
-std::string vec3(const float* v) { return "[" + num(v[0]) + ", " + num(v[1]) + ", " + num(v[2]) + "]"; }
+std::string vec3(const float* v) { return fmt("[%.9g, %.9g, %.9g]", double(v[0]), double(v[1]), double(v[2])); }
 
 const char* builder_name(uint32_t b) { return b == kBuilderSbvh ? "sbvh" : b == kBuilderEmbree ? "embree" : "unknown"; }
 const char* collapse_name(uint32_t c) {
