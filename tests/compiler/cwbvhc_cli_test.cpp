@@ -1,0 +1,129 @@
+// End-to-end tests of the cwbvhc command: exit codes, one-line errors,
+// determinism across thread counts, --stats-json, and that what it writes
+// passes the loader's full validation.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include <nlohmann/json.hpp>
+
+#include "compiler/cli_support.h"
+#include "cwbvh/loader.h"
+
+namespace fs = std::filesystem;
+using cwbvh::test::count_lines;
+using cwbvh::test::run_tool;
+
+namespace {
+
+std::vector<std::array<double, 3>> quad_vertices() { return {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}}; }
+
+TEST(CwbvhcCli, UsageErrorsExitTwo) {
+    EXPECT_EQ(run_tool("cwbvhc", {}).exit_code, 2);
+    EXPECT_EQ(run_tool("cwbvhc", {"a.obj"}).exit_code, 2);                     // no -o
+    EXPECT_EQ(run_tool("cwbvhc", {"a.obj", "-o"}).exit_code, 2);               // -o without value
+    EXPECT_EQ(run_tool("cwbvhc", {"a.obj", "-o", "x", "--bogus"}).exit_code, 2);
+    EXPECT_EQ(run_tool("cwbvhc", {"a.obj", "-o", "x", "--threads", "0"}).exit_code, 2);
+    EXPECT_EQ(run_tool("cwbvhc", {"a.obj", "-o", "x", "--builder", "magic"}).exit_code, 2);
+    EXPECT_EQ(run_tool("cwbvhc", {"a.obj", "-o", "x", "--split-alpha", "nan"}).exit_code, 2);
+    const auto help = run_tool("cwbvhc", {"--help"});
+    EXPECT_EQ(help.exit_code, 0);
+    EXPECT_NE(help.out.find("usage: cwbvhc"), std::string::npos);
+}
+
+TEST(CwbvhcCli, BadInputExitsOneWithOneLineNamingTheFile) {
+    const auto dir = cwbvh::test::temp_dir("badinput");
+    const auto out = (dir / "out.cwbvh").string();
+
+    const auto missing = run_tool("cwbvhc", {(dir / "missing.obj").string(), "-o", out});
+    EXPECT_EQ(missing.exit_code, 1);
+    EXPECT_EQ(count_lines(missing.err), 1) << missing.err;
+    EXPECT_NE(missing.err.find("missing.obj"), std::string::npos);
+
+    const auto garbage_path = dir / "garbage.glb";
+    std::ofstream(garbage_path) << "this is not a mesh";
+    const auto garbage = run_tool("cwbvhc", {garbage_path.string(), "-o", out});
+    EXPECT_EQ(garbage.exit_code, 1);
+    EXPECT_EQ(count_lines(garbage.err), 1) << garbage.err;
+    EXPECT_NE(garbage.err.find("garbage.glb"), std::string::npos);
+
+    // Only degenerate triangles: nothing left to compile.
+    const auto flat_path = dir / "degenerate.obj";
+    cwbvh::test::write_obj(flat_path, {{0, 0, 0}, {1, 1, 1}, {2, 2, 2}}, {{0, 1, 2}});
+    const auto flat = run_tool("cwbvhc", {flat_path.string(), "-o", out});
+    EXPECT_EQ(flat.exit_code, 1);
+    EXPECT_EQ(count_lines(flat.err), 1) << flat.err;
+
+    // A directory as input.
+    const auto directory = run_tool("cwbvhc", {dir.string(), "-o", out});
+    EXPECT_EQ(directory.exit_code, 1);
+    EXPECT_FALSE(fs::exists(out)) << "no output may be written on failure";
+}
+
+TEST(CwbvhcCli, StatsJsonHasTheDocumentedKeysAndMatchesTheFile) {
+    const auto dir = cwbvh::test::temp_dir("stats");
+    const auto mesh = dir / "quad.obj";
+    auto vertices = quad_vertices();
+    vertices.push_back({2, 0, 0});  // collinear with vertices 0 and 1
+    cwbvh::test::write_obj(mesh, vertices, {{0, 1, 2}, {0, 2, 3}, {0, 1, 4}});  // one degenerate (zero area)
+    const auto out = (dir / "quad.cwbvh").string();
+    const auto json_path = (dir / "stats.json").string();
+    const auto r = run_tool("cwbvhc", {mesh.string(), "-o", out, "--stats-json", json_path, "--quiet"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(r.out.empty()) << "--quiet prints nothing";
+
+    const auto j = nlohmann::json::parse(cwbvh::test::slurp(json_path));
+    for (const char* key : {"input_triangles", "dropped_triangles", "triangles", "references", "binary_nodes",
+                            "wide_nodes", "avg_children", "max_leaf_triangles", "sah_binary", "sah_wide", "bytes",
+                            "seconds", "peak_rss_bytes"})
+        EXPECT_TRUE(j.contains(key)) << key;
+    EXPECT_EQ(j["input_triangles"], 3);
+    EXPECT_EQ(j["dropped_triangles"]["degenerate"], 1);
+    EXPECT_EQ(j["triangles"], 2);
+    EXPECT_TRUE(j["bytes"].contains("NODE"));
+    EXPECT_TRUE(j["seconds"].contains("sbvh"));
+
+    auto file = cwbvh::File::open(out);
+    ASSERT_TRUE(file.ok()) << file.error().describe();
+    EXPECT_EQ(file->nodes().size(), j["wide_nodes"].get<size_t>());
+    EXPECT_EQ(file->triangles().size(), j["references"].get<size_t>());
+    EXPECT_EQ(file->source_map().size(), 2u);
+    ASSERT_NE(file->build_info(), nullptr);
+    EXPECT_EQ(file->build_info()->dropped_degenerate, 1u);
+    EXPECT_TRUE(file->bvh2().empty()) << "BVH2 only with --keep-sbvh";
+}
+
+TEST(CwbvhcCli, OptionalSectionsOnlyWhenAsked) {
+    const auto dir = cwbvh::test::temp_dir("optional");
+    const auto mesh = dir / "quad.obj";
+    cwbvh::test::write_obj(mesh, quad_vertices(), {{0, 1, 2}, {0, 2, 3}});
+    const auto out = (dir / "quad.cwbvh").string();
+    ASSERT_EQ(run_tool("cwbvhc", {mesh.string(), "-o", out, "--keep-sbvh", "--keep-mesh", "--quiet"}).exit_code, 0);
+    auto file = cwbvh::File::open(out);
+    ASSERT_TRUE(file.ok()) << file.error().describe();
+    EXPECT_FALSE(file->bvh2().empty());
+    EXPECT_EQ(file->vertices().size(), 4u * 3u);
+    EXPECT_EQ(file->indices().size(), 2u * 3u);
+}
+
+TEST(CwbvhcCli, ByteIdenticalOutputForAnyThreadCountAndBuilder) {
+    if (!fs::exists(cwbvh::test::bunny_path())) GTEST_SKIP() << "glmark2-data bunny not installed";
+    const auto dir = cwbvh::test::temp_dir("determinism");
+    for (const char* builder : {"sbvh", "embree"}) {
+        const auto one = (dir / (std::string(builder) + "1.cwbvh")).string();
+        const auto two = (dir / (std::string(builder) + "2.cwbvh")).string();
+        ASSERT_EQ(run_tool("cwbvhc", {cwbvh::test::bunny_path(), "-o", one, "--threads", "1", "--builder", builder,
+                                      "--keep-sbvh", "--quiet"})
+                      .exit_code,
+                  0);
+        ASSERT_EQ(run_tool("cwbvhc", {cwbvh::test::bunny_path(), "-o", two, "--threads", "2", "--builder", builder,
+                                      "--keep-sbvh", "--quiet"})
+                      .exit_code,
+                  0);
+        EXPECT_EQ(cwbvh::test::slurp(one), cwbvh::test::slurp(two)) << builder << ": output depends on threads";
+        const auto validate = run_tool("cwbvh", {"validate", one});
+        EXPECT_EQ(validate.exit_code, 0) << validate.out << validate.err;
+    }
+}
+
+}  // namespace
