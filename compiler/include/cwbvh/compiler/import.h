@@ -1,0 +1,102 @@
+// Import stage of cwbvhc: mesh files -> cleaned, merged Scene (model.h).
+//
+//   import_scene(paths)            dispatch each file by magic/extension (import.cpp)
+//     glTF 2.0 .gltf/.glb          tinygltf adapter           (import_gltf.cpp)
+//     .obj .ply .off .stl          OpenMesh adapter           (import_openmesh.cpp)
+//     .drc (and glTF Draco data)   Draco adapter              (import_draco.cpp)
+//   -> RawInput per file -> clean_and_merge (clean.cpp) -> Scene
+//
+// No third-party type appears here. Nothing throws out of these functions.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "cwbvh/compiler/model.h"
+
+namespace cwbvh::compiler {
+
+struct ImportOptions {
+    /// glTF: tolerate recoverable spec violations (a node with several
+    /// parents, an unknown entry in extensionsRequired) with a warning
+    /// instead of an error. Never relaxes bounds checks.
+    bool permissive = false;
+};
+
+/// Loads all inputs in order (SourceRef::input = position in `paths`), merges
+/// and cleans them into `out` (replaced). Returns false with `error` set to one
+/// line "<file>: <what is wrong>" on bad input; `warnings` gets one line per
+/// warning ("<file>: ..."). Deterministic: same inputs, same Scene.
+[[nodiscard]] bool import_scene(const std::vector<std::string>& paths, const ImportOptions& options,
+                                Scene& out, std::string& error, std::vector<std::string>& warnings);
+
+// ---------------------------------------------------------------------------
+// Stage internals (used by import_scene and by the tests).
+// ---------------------------------------------------------------------------
+
+/// One source primitive after triangulation and (glTF) node transform. One
+/// glTF mesh instanced by several nodes gives several RawPrimitives with the
+/// same mesh/primitive ids.
+struct RawPrimitive {
+    uint32_t mesh = 0;        ///< SourceRef::mesh
+    uint32_t primitive = 0;   ///< SourceRef::primitive
+    std::vector<Vec3> vertices;
+    /// Triangles in source (triangulated) order: SourceRef::triangle is the
+    /// position in this list. Indices are checked < vertices.size().
+    std::vector<std::array<uint32_t, 3>> triangles;
+};
+
+struct RawInput {
+    std::vector<RawPrimitive> primitives;
+    std::map<std::string, uint64_t> skipped_primitives;  ///< "points", "lines", ...
+};
+
+/// Per-format readers. Each returns false and sets `error` (without the file
+/// name prefix; import_scene adds it) on bad input.
+[[nodiscard]] bool import_gltf(const std::string& path, const ImportOptions& options, RawInput& out,
+                               std::string& error, std::vector<std::string>& warnings);
+[[nodiscard]] bool import_openmesh(const std::string& path, const ImportOptions& options,
+                                   RawInput& out, std::string& error,
+                                   std::vector<std::string>& warnings);
+[[nodiscard]] bool import_draco_file(const std::string& path, RawInput& out, std::string& error);
+
+/// Decodes a Draco mesh (KHR_draco_mesh_compression or a .drc file) into
+/// positions and triangles. `position_id`: the Draco attribute unique id of
+/// the positions, or -1 for "the POSITION attribute". Positions come back as
+/// Draco's dequantized floats.
+[[nodiscard]] bool decode_draco_mesh(const uint8_t* data, size_t size, int position_id,
+                                     std::vector<Vec3>& vertices,
+                                     std::vector<std::array<uint32_t, 3>>& triangles,
+                                     std::string& error);
+
+/// Largest accepted coordinate magnitude: 2^125. The quantizer of the wide
+/// nodes needs a power-of-two scale 2^(e-127) with e <= 254 covering the
+/// extent of a box; coordinates beyond 2^125 (about 4.25e37) cannot be
+/// encoded, so files with such (finite) coordinates are rejected.
+inline constexpr float kMaxCoordinate = 0x1p125f;
+
+/// Exact degeneracy test: true iff the cross product (b-a) x (c-a) is
+/// exactly zero in real arithmetic, i.e. the three points are collinear or
+/// coincident. Each edge component is formed in double and each cross term is
+/// evaluated as an exact two-double product (fma), so the answer is exact
+/// whenever the edge components are exact in double (always, unless one
+/// triangle spans more than 29 binades on one axis). When an edge component
+/// is not exact the triangle is reported as not degenerate (kept): we only
+/// drop what is provably zero-area.
+bool is_degenerate(const Vec3& a, const Vec3& b, const Vec3& c);
+
+/// Appends `input` as input number `input_index` to `scene`: every triangle
+/// counts in input_triangles; triangles with a NaN/Inf coordinate are dropped
+/// ("nonfinite"), exactly zero-area ones too ("degenerate"); nothing else is
+/// changed (no welding, no reordering). Vertices not referenced by a kept
+/// triangle are removed, the rest keep their relative source order (so the
+/// indices equal the source's when every vertex is used). Returns false (error
+/// set) for a finite coordinate beyond kMaxCoordinate or a scene exceeding
+/// 32-bit indices.
+[[nodiscard]] bool clean_and_append(const RawInput& input, uint32_t input_index, Scene& scene,
+                                    std::string& error);
+
+}  // namespace cwbvh::compiler

@@ -1,0 +1,115 @@
+// Draco adapter (the only file that includes Draco): .drc files and the
+// compressed buffer views of glTF KHR_draco_mesh_compression primitives.
+#include <fstream>
+#include <iterator>
+
+#if defined(__GNUC__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wshadow"
+#pragma GCC diagnostic ignored "-Wpedantic"
+#pragma GCC diagnostic ignored "-Wunused-parameter"
+#endif
+#include <draco/compression/decode.h>
+#include <draco/core/decoder_buffer.h>
+#if defined(__GNUC__)
+#pragma GCC diagnostic pop
+#endif
+
+#include "cwbvh/compiler/import.h"
+
+namespace cwbvh::compiler {
+
+bool decode_draco_mesh(const uint8_t* data, size_t size, int position_id,
+                       std::vector<Vec3>& vertices,
+                       std::vector<std::array<uint32_t, 3>>& triangles, std::string& error) {
+    vertices.clear();
+    triangles.clear();
+    try {
+        draco::DecoderBuffer buffer;
+        buffer.Init(reinterpret_cast<const char*>(data), size);
+        auto type = draco::Decoder::GetEncodedGeometryType(&buffer);
+        if (!type.ok()) {
+            error = "Draco: " + type.status().error_msg_string();
+            return false;
+        }
+        if (type.value() != draco::TRIANGULAR_MESH) {
+            error = "Draco data is a point cloud, not a triangle mesh";
+            return false;
+        }
+        draco::Decoder decoder;
+        auto result = decoder.DecodeMeshFromBuffer(&buffer);
+        if (!result.ok()) {
+            error = "Draco decode failed: " + result.status().error_msg_string();
+            return false;
+        }
+        const draco::Mesh& mesh = *result.value();
+        const draco::PointAttribute* pos =
+            position_id >= 0 ? mesh.GetAttributeByUniqueId(uint32_t(position_id))
+                             : mesh.GetNamedAttribute(draco::GeometryAttribute::POSITION);
+        if (pos == nullptr) {
+            error = "Draco data has no position attribute" +
+                    (position_id >= 0 ? " with id " + std::to_string(position_id) : std::string());
+            return false;
+        }
+        if (pos->num_components() != 3) {
+            error = "Draco position attribute has " + std::to_string(pos->num_components()) +
+                    " components, expected 3";
+            return false;
+        }
+        const uint32_t num_points = mesh.num_points();
+        if (!pos->is_mapping_identity() && pos->indices_map_size() < num_points) {
+            error = "Draco position attribute maps fewer points than the mesh has";
+            return false;
+        }
+        vertices.resize(num_points);
+        for (uint32_t i = 0; i < num_points; ++i) {
+            const draco::AttributeValueIndex avi = pos->mapped_index(draco::PointIndex(i));
+            float v[3] = {0, 0, 0};
+            // ConvertValue dequantizes (Draco's own quantization and normalized
+            // integer attributes) to float.
+            if (avi.value() >= pos->size() || !pos->ConvertValue<float>(avi, 3, v)) {
+                error = "Draco position of point " + std::to_string(i) + " cannot be read";
+                return false;
+            }
+            vertices[i] = {v[0], v[1], v[2]};
+        }
+        triangles.resize(mesh.num_faces());
+        for (uint32_t f = 0; f < mesh.num_faces(); ++f) {
+            const draco::Mesh::Face& face = mesh.face(draco::FaceIndex(f));
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t v = face[k].value();
+                if (v >= num_points) {
+                    error = "Draco face " + std::to_string(f) + " has vertex index " +
+                            std::to_string(v) + " >= " + std::to_string(num_points);
+                    return false;
+                }
+                triangles[f][k] = v;
+            }
+        }
+    } catch (const std::bad_alloc&) {
+        error = "out of memory while decoding Draco data";
+        return false;
+    } catch (const std::exception& e) {
+        error = std::string("Draco decode failed: ") + e.what();
+        return false;
+    }
+    return true;
+}
+
+bool import_draco_file(const std::string& path, RawInput& out, std::string& error) {
+    out = RawInput{};
+    std::ifstream f(path, std::ios::binary);
+    if (!f) {
+        error = "cannot open file";
+        return false;
+    }
+    const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)),
+                                     std::istreambuf_iterator<char>());
+    RawPrimitive prim;
+    if (!decode_draco_mesh(bytes.data(), bytes.size(), -1, prim.vertices, prim.triangles, error))
+        return false;
+    out.primitives.push_back(std::move(prim));
+    return true;
+}
+
+}  // namespace cwbvh::compiler
