@@ -57,7 +57,7 @@ cwbvh_status cwbvh_open(const char* path, const cwbvh_open_options* options, cwb
             handle->message = opened.error().describe();
         }
         return handle->status;
-    } catch (const std::bad_alloc&) {
+    } catch (const std::exception&) {  // std::bad_alloc, std::length_error: allocation failed
         delete *out;
         *out = nullptr;
         return CWBVH_ERROR_OUT_OF_MEMORY;
