@@ -79,7 +79,8 @@ bool import_scene(const std::vector<std::string>& paths, const ImportOptions& op
                 out = Scene{};
                 return false;
             }
-            const uint64_t before = out.triangle_count();
+            const uint64_t before = out.triangle_count(), read_before = out.input_triangles;
+            const auto dropped_before = out.dropped;
             if (!clean_and_append(raw, uint32_t(i), out, what)) {
                 error = path + ": " + what;
                 out = Scene{};
@@ -88,6 +89,16 @@ bool import_scene(const std::vector<std::string>& paths, const ImportOptions& op
             out.input_names.push_back(path);
             if (out.triangle_count() == before) {
                 error = path + ": no triangles";
+                const uint64_t read = out.input_triangles - read_before;
+                if (read > 0) {
+                    error += " (all " + std::to_string(read) + " dropped:";
+                    for (const auto& [reason, n] : out.dropped) {
+                        const auto it = dropped_before.find(reason);
+                        const uint64_t d = n - (it == dropped_before.end() ? 0 : it->second);
+                        if (d > 0) error += " " + std::to_string(d) + " " + reason;
+                    }
+                    error += ")";
+                }
                 out = Scene{};
                 return false;
             }

@@ -18,7 +18,9 @@
 #include <fstream>
 #include <iterator>
 #include <limits>
-#include <set>
+#include <map>
+#include <string_view>
+#include <utility>
 
 #if defined(__GNUC__)
 #pragma GCC diagnostic push
@@ -120,6 +122,71 @@ double read_component(const uint8_t* p, int component_type, bool normalized) {
     }
 }
 
+/// (mesh, primitive) -> indices accessor of KHR_draco_mesh_compression
+/// primitives (see strip_draco_indices).
+using DracoIndices = std::map<std::pair<size_t, size_t>, int>;
+
+/// tinygltf 2.7 without TINYGLTF_ENABLE_DRACO rejects a primitive whose
+/// indices accessor has no bufferView ("accessor[i] invalid bufferView"),
+/// which is exactly what KHR_draco_mesh_compression primitives have. So,
+/// before tinygltf sees the JSON, remove "indices" from every Draco
+/// primitive and remember it in `table`; the reader checks it against the
+/// decoded data. Returns the (possibly rebuilt) file bytes; on any parse
+/// problem returns the input unchanged and lets tinygltf report the error.
+std::vector<uint8_t> strip_draco_indices(const std::vector<uint8_t>& bytes, bool binary,
+                                         DracoIndices& table) {
+    static const std::string kExt = "KHR_draco_mesh_compression";
+    size_t json_begin = 0, json_size = bytes.size();
+    if (binary) {
+        if (bytes.size() < 20) return bytes;
+        uint32_t chunk0 = 0;
+        std::memcpy(&chunk0, bytes.data() + 12, 4);
+        if (chunk0 > bytes.size() - 20) return bytes;
+        json_begin = 20;
+        json_size = chunk0;
+    }
+    const char* text = reinterpret_cast<const char*>(bytes.data()) + json_begin;
+    if (std::string_view(text, json_size).find(kExt) == std::string_view::npos) return bytes;
+    nlohmann::json doc = nlohmann::json::parse(text, text + json_size, nullptr, false);
+    if (doc.is_discarded() || !doc.is_object()) return bytes;
+    auto meshes = doc.find("meshes");
+    if (meshes == doc.end() || !meshes->is_array()) return bytes;
+    bool changed = false;
+    for (size_t m = 0; m < meshes->size(); ++m) {
+        nlohmann::json& mesh = (*meshes)[m];
+        if (!mesh.is_object() || !mesh.contains("primitives") || !mesh["primitives"].is_array())
+            continue;
+        nlohmann::json& prims = mesh["primitives"];
+        for (size_t k = 0; k < prims.size(); ++k) {
+            nlohmann::json& prim = prims[k];
+            if (!prim.is_object() || !prim.contains("extensions") ||
+                !prim["extensions"].is_object() || !prim["extensions"].contains(kExt) ||
+                !prim.contains("indices") || !prim["indices"].is_number_integer())
+                continue;
+            const int64_t idx = prim["indices"].get<int64_t>();
+            table[{m, k}] = idx >= 0 && idx <= std::numeric_limits<int>::max() ? int(idx) : -2;
+            prim.erase("indices");
+            changed = true;
+        }
+    }
+    if (!changed) return bytes;
+    std::string json = doc.dump();
+    if (!binary) return std::vector<uint8_t>(json.begin(), json.end());
+    while (json.size() % 4 != 0) json.push_back(' ');  // GLB chunks are 4-aligned
+    const size_t rest_begin = json_begin + json_size;
+    std::vector<uint8_t> out(bytes.begin(), bytes.begin() + 12);
+    const uint32_t chunk_len = uint32_t(json.size()), chunk_type = 0x4E4F534A;  // "JSON"
+    out.insert(out.end(), reinterpret_cast<const uint8_t*>(&chunk_len),
+               reinterpret_cast<const uint8_t*>(&chunk_len) + 4);
+    out.insert(out.end(), reinterpret_cast<const uint8_t*>(&chunk_type),
+               reinterpret_cast<const uint8_t*>(&chunk_type) + 4);
+    out.insert(out.end(), json.begin(), json.end());
+    out.insert(out.end(), bytes.begin() + std::ptrdiff_t(rest_begin), bytes.end());
+    const uint32_t total = uint32_t(out.size());
+    std::memcpy(out.data() + 8, &total, 4);
+    return out;
+}
+
 /// Local (untransformed) geometry of one primitive, decoded once and shared
 /// by every node that instances the mesh.
 struct LocalPrimitive {
@@ -131,9 +198,9 @@ struct LocalPrimitive {
 
 class GltfReader {
 public:
-    GltfReader(const tg::Model& model, const ImportOptions& options,
-               std::vector<std::string>& warnings)
-        : model_(model), options_(options), warnings_(warnings) {}
+    GltfReader(const tg::Model& model, const DracoIndices& draco_indices,
+               const ImportOptions& options, std::vector<std::string>& warnings)
+        : model_(model), draco_indices_(draco_indices), options_(options), warnings_(warnings) {}
 
     bool run(RawInput& out, std::string& error);
 
@@ -159,6 +226,7 @@ private:
     }
 
     const tg::Model& model_;
+    const DracoIndices& draco_indices_;
     const ImportOptions& options_;
     std::vector<std::string>& warnings_;
     std::vector<std::vector<LocalPrimitive>> cache_;
@@ -395,15 +463,17 @@ bool GltfReader::decode_primitive(size_t mesh, size_t prim, LocalPrimitive& lp, 
             mismatch = "POSITION accessor count " +
                        std::to_string(model_.accessors[size_t(pos_acc)].count) +
                        " but Draco decoded " + std::to_string(verts.size()) + " points";
-        if (p.indices >= 0) {
-            if (size_t(p.indices) >= model_.accessors.size()) {
-                error = name + ": indices accessor " + std::to_string(p.indices) +
+        const auto di = draco_indices_.find({mesh, prim});
+        const int indices = di != draco_indices_.end() ? di->second : p.indices;
+        if (indices != -1) {
+            if (indices < 0 || size_t(indices) >= model_.accessors.size()) {
+                error = name + ": indices accessor " + std::to_string(indices) +
                         " does not exist";
                 return false;
             }
-            if (model_.accessors[size_t(p.indices)].count != 3 * lp.triangles.size())
+            if (model_.accessors[size_t(indices)].count != 3 * lp.triangles.size())
                 mismatch = "indices accessor count " +
-                           std::to_string(model_.accessors[size_t(p.indices)].count) +
+                           std::to_string(model_.accessors[size_t(indices)].count) +
                            " but Draco decoded " + std::to_string(lp.triangles.size()) +
                            " triangles";
         }
@@ -647,8 +717,11 @@ bool import_gltf(const std::string& path, const ImportOptions& options, RawInput
             error = "cannot open file";
             return false;
         }
-        const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)),
-                                         std::istreambuf_iterator<char>());
+        std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)),
+                                   std::istreambuf_iterator<char>());
+        const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
+        DracoIndices draco_indices;
+        bytes = strip_draco_indices(bytes, binary, draco_indices);
         if (bytes.size() >= std::numeric_limits<unsigned int>::max()) {
             error = "file of 4 GiB or more (tinygltf limit)";
             return false;
@@ -660,7 +733,6 @@ bool import_gltf(const std::string& path, const ImportOptions& options, RawInput
         loader.SetImageLoader(&ignore_image, nullptr);
         tg::Model model;
         std::string err, warn;
-        const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
         const bool ok =
             binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, bytes.data(),
                                                  unsigned(bytes.size()), base_dir)
@@ -688,7 +760,7 @@ bool import_gltf(const std::string& path, const ImportOptions& options, RawInput
                 warnings.push_back("extension " + ext +
                                    " is not supported; geometry may be incomplete");
 
-        GltfReader reader(model, options, warnings);
+        GltfReader reader(model, draco_indices, options, warnings);
         return reader.run(out, error);
     } catch (const std::bad_alloc&) {
         error = "out of memory while reading glTF";
