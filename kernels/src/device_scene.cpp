@@ -1,0 +1,179 @@
+// DeviceScene upload (see device_scene.h for the choice of upload method).
+#include "cwbvh/device_scene.h"
+
+#include <chrono>
+#include <cstring>
+#include <limits>
+#include <span>
+#include <utility>
+
+#include "cwbvh/cuda_check.h"
+#include "cwbvh/loader.h"
+
+namespace cwbvh {
+namespace {
+
+/// Pinned double-buffered staging copier; frees everything it made, also on throw.
+class Stager {
+public:
+    Stager() {
+        CWBVH_CUDA_CHECK(cudaStreamCreateWithFlags(&stream_, cudaStreamNonBlocking));
+        for (int i = 0; i < 2; ++i) {
+            CWBVH_CUDA_CHECK(cudaMallocHost(&buf_[i], kStagingChunkBytes));
+            CWBVH_CUDA_CHECK(cudaEventCreateWithFlags(&done_[i], cudaEventDisableTiming));
+        }
+    }
+    ~Stager() {
+        if (stream_) CWBVH_CUDA_WARN(cudaStreamSynchronize(stream_));
+        for (int i = 0; i < 2; ++i) {
+            if (done_[i]) CWBVH_CUDA_WARN(cudaEventDestroy(done_[i]));
+            if (buf_[i]) CWBVH_CUDA_WARN(cudaFreeHost(buf_[i]));
+        }
+        if (stream_) CWBVH_CUDA_WARN(cudaStreamDestroy(stream_));
+    }
+    Stager(const Stager&) = delete;
+    Stager& operator=(const Stager&) = delete;
+
+    void copy(void* dst, const void* src, size_t bytes) {
+        const auto* s = static_cast<const uint8_t*>(src);
+        auto* d = static_cast<uint8_t*>(dst);
+        for (size_t off = 0; off < bytes; off += kStagingChunkBytes) {
+            const size_t n = bytes - off < kStagingChunkBytes ? bytes - off : kStagingChunkBytes;
+            // Wait until the DMA that last read this buffer has finished.
+            if (used_[next_]) CWBVH_CUDA_CHECK(cudaEventSynchronize(done_[next_]));
+            std::memcpy(buf_[next_], s + off, n);
+            CWBVH_CUDA_CHECK(cudaMemcpyAsync(d + off, buf_[next_], n, cudaMemcpyHostToDevice, stream_));
+            CWBVH_CUDA_CHECK(cudaEventRecord(done_[next_], stream_));
+            used_[next_] = true;
+            next_ ^= 1;
+        }
+    }
+    void finish() { CWBVH_CUDA_CHECK(cudaStreamSynchronize(stream_)); }
+
+private:
+    cudaStream_t stream_ = nullptr;
+    void* buf_[2] = {nullptr, nullptr};
+    cudaEvent_t done_[2] = {nullptr, nullptr};
+    bool used_[2] = {false, false};
+    int next_ = 0;
+};
+
+template <class T>
+T* alloc_and_copy(std::span<const T> src, Stager* stager, uint64_t& bytes) {
+    if (src.empty()) return nullptr;
+    T* d = nullptr;
+    CWBVH_CUDA_CHECK(cudaMalloc(reinterpret_cast<void**>(&d), src.size_bytes()));
+    try {
+        if (stager && src.size_bytes() >= kStagingMinBytes) {
+            stager->copy(d, src.data(), src.size_bytes());
+        } else {
+            CWBVH_CUDA_CHECK(cudaMemcpy(d, src.data(), src.size_bytes(), cudaMemcpyHostToDevice));
+        }
+    } catch (...) {
+        CWBVH_CUDA_WARN(cudaFree(d));
+        throw;
+    }
+    bytes += src.size_bytes();
+    return d;
+}
+
+}  // namespace
+
+std::optional<DeviceScene> DeviceScene::upload(const File& file, std::string& error,
+                                               const UploadOptions& options) {
+    const std::span<const Bvh2Node> bvh2 = options.bvh2 ? file.bvh2() : std::span<const Bvh2Node>{};
+    return upload(file.nodes().data(), file.nodes().size(), file.triangles().data(), file.triangles().size(),
+                  bvh2.data(), bvh2.size(), error, options);
+}
+
+std::optional<DeviceScene> DeviceScene::upload(const CwbvhNode* node_ptr, size_t node_count,
+                                               const TriangleRecord* tri_ptr, size_t tri_count,
+                                               const Bvh2Node* bvh2_ptr, size_t bvh2_count, std::string& error,
+                                               const UploadOptions& options) {
+    const std::span<const CwbvhNode> nodes(node_ptr, node_ptr ? node_count : 0);
+    const std::span<const TriangleRecord> triangles(tri_ptr, tri_ptr ? tri_count : 0);
+    const std::span<const Bvh2Node> bvh2(bvh2_ptr, bvh2_ptr ? bvh2_count : 0);
+    constexpr size_t kMaxCount = std::numeric_limits<uint32_t>::max();
+    if (nodes.empty()) {
+        error = "device upload: the scene has no NODE section (not opened, or not selected)";
+        return std::nullopt;
+    }
+    if (nodes.size() > kMaxCount || triangles.size() > kMaxCount || bvh2.size() > kMaxCount) {
+        error = "device upload: more than 2^32-1 nodes or triangles (kernels use 32-bit indices)";
+        return std::nullopt;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    DeviceScene scene;
+    try {
+        if (options.device >= 0) CWBVH_CUDA_CHECK(cudaSetDevice(options.device));
+        CWBVH_CUDA_CHECK(cudaGetDevice(&scene.device_));
+        uint64_t bytes = 0;
+        std::optional<Stager> stager;
+        if (options.method == UploadMethod::kPinnedStaging &&
+            nodes.size_bytes() + triangles.size_bytes() + bvh2.size_bytes() >= kStagingMinBytes) {
+            stager.emplace();
+        }
+        Stager* s = stager ? &*stager : nullptr;
+        scene.nodes_ = alloc_and_copy(nodes, s, bytes);
+        scene.node_count_ = uint32_t(nodes.size());
+        scene.tris_ = alloc_and_copy(triangles, s, bytes);
+        scene.tri_count_ = uint32_t(triangles.size());
+        scene.bvh2_ = alloc_and_copy(bvh2, s, bytes);
+        scene.bvh2_count_ = uint32_t(bvh2.size());
+        if (s) s->finish();
+        CWBVH_CUDA_CHECK(cudaDeviceSynchronize());
+        scene.stats_.bytes = bytes;
+    } catch (const CudaError& e) {
+        error = std::string("device upload: ") + e.what();
+        return std::nullopt;  // scene's destructor frees what was allocated
+    } catch (const std::bad_alloc&) {
+        error = "device upload: out of host memory";
+        return std::nullopt;
+    }
+    scene.stats_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return std::optional<DeviceScene>(std::move(scene));
+}
+
+DeviceScene::DeviceScene(DeviceScene&& o) noexcept
+    : nodes_(std::exchange(o.nodes_, nullptr)),
+      tris_(std::exchange(o.tris_, nullptr)),
+      bvh2_(std::exchange(o.bvh2_, nullptr)),
+      node_count_(std::exchange(o.node_count_, 0)),
+      tri_count_(std::exchange(o.tri_count_, 0)),
+      bvh2_count_(std::exchange(o.bvh2_count_, 0)),
+      device_(std::exchange(o.device_, -1)),
+      stats_(o.stats_) {}
+
+DeviceScene& DeviceScene::operator=(DeviceScene&& o) noexcept {
+    if (this != &o) {
+        release();
+        nodes_ = std::exchange(o.nodes_, nullptr);
+        tris_ = std::exchange(o.tris_, nullptr);
+        bvh2_ = std::exchange(o.bvh2_, nullptr);
+        node_count_ = std::exchange(o.node_count_, 0);
+        tri_count_ = std::exchange(o.tri_count_, 0);
+        bvh2_count_ = std::exchange(o.bvh2_count_, 0);
+        device_ = std::exchange(o.device_, -1);
+        stats_ = o.stats_;
+    }
+    return *this;
+}
+
+DeviceScene::~DeviceScene() { release(); }
+
+void DeviceScene::release() noexcept {
+    if (!nodes_ && !tris_ && !bvh2_) return;
+    int current = -1;
+    CWBVH_CUDA_WARN(cudaGetDevice(&current));
+    if (device_ >= 0 && current != device_) CWBVH_CUDA_WARN(cudaSetDevice(device_));
+    if (nodes_) CWBVH_CUDA_WARN(cudaFree(nodes_));
+    if (tris_) CWBVH_CUDA_WARN(cudaFree(tris_));
+    if (bvh2_) CWBVH_CUDA_WARN(cudaFree(bvh2_));
+    if (device_ >= 0 && current >= 0 && current != device_) CWBVH_CUDA_WARN(cudaSetDevice(current));
+    nodes_ = nullptr;
+    tris_ = nullptr;
+    bvh2_ = nullptr;
+    node_count_ = tri_count_ = bvh2_count_ = 0;
+}
+
+}  // namespace cwbvh

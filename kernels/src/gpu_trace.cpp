@@ -1,0 +1,166 @@
+// trace_on_gpu / gpu_available (cwbvh/gpu_trace.h) over DeviceScene + trace().
+#include "cwbvh/gpu_trace.h"
+
+#include <algorithm>
+#include <chrono>
+#include <optional>
+#include <vector>
+
+#include "cwbvh/cuda_check.h"
+#include "cwbvh/device_scene.h"
+#include "cwbvh/loader.h"
+#include "cwbvh/trace.h"
+
+namespace cwbvh {
+namespace {
+
+template <class T>
+class DeviceBuffer {
+public:
+    explicit DeviceBuffer(size_t n) {
+        if (n) CWBVH_CUDA_CHECK(cudaMalloc(reinterpret_cast<void**>(&p_), n * sizeof(T)));
+    }
+    ~DeviceBuffer() {
+        if (p_) CWBVH_CUDA_WARN(cudaFree(p_));
+    }
+    DeviceBuffer(const DeviceBuffer&) = delete;
+    DeviceBuffer& operator=(const DeviceBuffer&) = delete;
+    T* get() const { return p_; }
+
+private:
+    T* p_ = nullptr;
+};
+
+class Event {
+public:
+    Event() { CWBVH_CUDA_CHECK(cudaEventCreate(&e_)); }
+    ~Event() { CWBVH_CUDA_WARN(cudaEventDestroy(e_)); }
+    Event(const Event&) = delete;
+    Event& operator=(const Event&) = delete;
+    cudaEvent_t get() const { return e_; }
+
+private:
+    cudaEvent_t e_ = nullptr;
+};
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+bool gpu_available(std::string& why) {
+    int runtime = 0, driver = 0;
+    cudaRuntimeGetVersion(&runtime);
+    const cudaError_t de = cudaDriverGetVersion(&driver);
+    int count = 0;
+    const cudaError_t e = cudaGetDeviceCount(&count);
+    if (e != cudaSuccess || count == 0) {
+        if (e == cudaErrorInsufficientDriver || (de == cudaSuccess && driver != 0 && driver < runtime)) {
+            why = "CUDA driver too old: driver supports CUDA " + std::to_string(driver / 1000) + "." +
+                  std::to_string(driver % 1000 / 10) + ", runtime is " + std::to_string(runtime / 1000) + "." +
+                  std::to_string(runtime % 1000 / 10);
+        } else if (e == cudaErrorNoDevice || count == 0 || driver == 0) {
+            why = "no CUDA device";
+        } else {
+            why = std::string("no usable CUDA device: ") + cudaGetErrorName(e) + " (" + cudaGetErrorString(e) + ")";
+        }
+        cudaGetLastError();  // clear the sticky-free error state
+        return false;
+    }
+    try {
+        KernelInfo info[8];
+        kernel_info(info, 8);  // fails with cudaErrorNoKernelImageForDevice on an unsupported arch
+    } catch (const CudaError& ce) {
+        cudaDeviceProp prop{};
+        cudaGetDeviceProperties(&prop, 0);
+        why = std::string("no kernel image for device 0 (") + prop.name + ", sm_" + std::to_string(prop.major) +
+              std::to_string(prop.minor) + "): rebuild with -DCMAKE_CUDA_ARCHITECTURES=native; " + ce.what();
+        cudaGetLastError();
+        return false;
+    }
+    why.clear();
+    return true;
+}
+
+GpuTraceResult trace_on_gpu(const File& file, const Ray* rays, Hit* hits, size_t n, const GpuTraceOptions& options) {
+    GpuTraceResult r;
+    r.rays = n;
+    std::string why;
+    if (!gpu_available(why)) {
+        r.error = why;
+        return r;
+    }
+    try {
+        if (options.device >= 0) CWBVH_CUDA_CHECK(cudaSetDevice(options.device));
+        int dev = 0;
+        CWBVH_CUDA_CHECK(cudaGetDevice(&dev));
+        cudaDeviceProp prop{};
+        CWBVH_CUDA_CHECK(cudaGetDeviceProperties(&prop, dev));
+        r.device_name = prop.name;
+
+        UploadOptions up;
+        up.bvh2 = options.kernel == GpuKernel::kBvh2;
+        std::optional<DeviceScene> scene = DeviceScene::upload(file, why, up);
+        if (!scene) {
+            r.error = why;
+            return r;
+        }
+        r.scene_upload_ms = scene->upload_stats().seconds * 1e3;
+        if (options.kernel == GpuKernel::kBvh2 && !scene->has_bvh2()) {
+            r.error = file.path() + ": no BVH2 section (compile with cwbvhc --keep-sbvh)";
+            return r;
+        }
+        r.node_bytes = options.kernel == GpuKernel::kBvh2 ? scene->bvh2_bytes() : scene->node_bytes();
+        r.triangle_bytes = scene->triangle_bytes();
+
+        DeviceBuffer<Ray> d_rays(n);
+        DeviceBuffer<Hit> d_hits(n);
+        auto t0 = std::chrono::steady_clock::now();
+        if (n) CWBVH_CUDA_CHECK(cudaMemcpy(d_rays.get(), rays, n * sizeof(Ray), cudaMemcpyHostToDevice));
+        r.rays_upload_ms = ms_since(t0);
+
+        const Query q = options.any ? Query::kAny : Query::kClosest;
+        TraceOptions to;
+        to.test = options.test;
+        DeviceTraceStats stats;
+        Event start, stop;
+        std::vector<double> times;
+        const int repeat = std::max(1, options.repeat);
+        for (int i = 0; i < repeat; ++i) {
+            to.stats = i + 1 == repeat ? &stats : nullptr;
+            CWBVH_CUDA_CHECK(cudaEventRecord(start.get(), nullptr));
+            if (options.kernel == GpuKernel::kBvh2) {
+                trace_bvh2(*scene, d_rays.get(), d_hits.get(), n, q, nullptr, to);
+            } else {
+                trace(*scene, d_rays.get(), d_hits.get(), n, q, nullptr, to);
+            }
+            CWBVH_CUDA_CHECK(cudaEventRecord(stop.get(), nullptr));
+            CWBVH_CUDA_CHECK(cudaEventSynchronize(stop.get()));
+            float ms = 0;
+            CWBVH_CUDA_CHECK(cudaEventElapsedTime(&ms, start.get(), stop.get()));
+            times.push_back(ms);
+        }
+        std::sort(times.begin(), times.end());
+        r.kernel_ms = times[times.size() / 2];
+        r.kernel_ms_min = times.front();
+        r.mrays_per_s = r.kernel_ms > 0 ? double(n) / (r.kernel_ms * 1e3) : 0.0;
+
+        t0 = std::chrono::steady_clock::now();
+        if (n) CWBVH_CUDA_CHECK(cudaMemcpy(hits, d_hits.get(), n * sizeof(Hit), cudaMemcpyDeviceToHost));
+        r.hits_download_ms = ms_since(t0);
+        for (size_t i = 0; i < n; ++i) r.hits += hits[i].prim != kMissPrim;
+        r.nodes_visited = stats.nodes_visited;
+        r.triangles_tested = stats.triangles_tested;
+        r.invalid_rays = stats.invalid_rays;
+        r.stack_overflows = stats.stack_overflows;
+        r.bad_indices = stats.bad_indices;
+        r.ok = true;
+    } catch (const std::exception& e) {
+        r.ok = false;
+        r.error = e.what();
+    }
+    return r;
+}
+
+}  // namespace cwbvh

@@ -1,0 +1,18 @@
+// gpu_trace.h in a build without CUDA: reports why there is no GPU path.
+#include "cwbvh/gpu_trace.h"
+
+namespace cwbvh {
+
+bool gpu_available(std::string& why) {
+    why = "cwbvh was built without CUDA (no nvcc at configure time, or CWBVH_CUDA=OFF)";
+    return false;
+}
+
+GpuTraceResult trace_on_gpu(const File&, const Ray*, Hit*, size_t n, const GpuTraceOptions&) {
+    GpuTraceResult r;
+    r.rays = n;
+    gpu_available(r.error);
+    return r;
+}
+
+}  // namespace cwbvh
