@@ -12,6 +12,9 @@ inline constexpr int kExitUsage = 2;
 /// argv[0] is the verb itself; argv[1..argc) its arguments.
 int run_info(int argc, char** argv);
 int run_validate(int argc, char** argv);
+int run_rays(int argc, char** argv);
+int run_trace(int argc, char** argv);
+int run_render(int argc, char** argv);
 
 /// Prints "cwbvh: error: <message>" to stderr; returns `code`.
 int error(int code, const char* message);

@@ -18,6 +18,9 @@ struct Verb {
 constexpr Verb kVerbs[] = {
     {"info", run_info, "info FILE [--json]          sections, bounds and build info"},
     {"validate", run_validate, "validate FILE... [--no-checksums]   check a file against the spec"},
+    {"rays", run_rays, "rays FILE --primary|--diffuse [--bounce N] [--width W --height H] [--seed S] -o RAYS"},
+    {"trace", run_trace, "trace FILE --rays RAYS [--hits HITS] [--any] [--fast] [--bvh2] [--cpu|--gpu] [--threads N]"},
+    {"render", run_render, "render FILE -o IMAGE.png [--heatmap] [--width W --height H] [--camera e,e,e,t,t,t,fov] [--ao N]"},
 };
 
 void print_usage(FILE* out) {

@@ -1,0 +1,141 @@
+// cwbvh trace FILE --rays RAYS [--hits HITS] [--any] [--fast] [--bvh2]
+//                  [--cpu | --gpu] [--threads N] [--repeat K]
+// Traces a ray file against a compiled scene and prints throughput and work
+// counters; optionally writes the hit file (spec/rays.md).
+//
+// Backends: --cpu (default) runs the shared traversal (traverse.h) on std::threads.
+// --gpu is the hook for the CUDA kernels: trace_gpu() below is the only place to
+// fill in; until then it reports that this build has no GPU path.
+#include <algorithm>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "args.h"
+#include "commands.h"
+#include "cwbvh/cpu_trace.h"
+#include "cwbvh/loader.h"
+#include "cwbvh/ray_file.h"
+
+namespace cwbvh::tool {
+namespace {
+
+struct TraceRequest {
+    bool any = false;
+    bool fast = false;
+    bool bvh2 = false;
+    unsigned threads = 0;
+};
+
+/// GPU hook: trace `rays` on the device into `hits` and fill `stats` (seconds =
+/// kernel time). Returns false with `err` when unavailable.
+bool trace_gpu(const File&, const std::vector<Ray>&, std::vector<Hit>&, const TraceRequest&, CpuTraceStats&,
+               std::string& err) {
+    err = "trace: --gpu: this build of cwbvh has no GPU trace path yet";
+    return false;
+}
+
+CpuTraceStats trace_cpu(const File& f, const std::vector<Ray>& rays, std::vector<Hit>& hits, const TraceRequest& r) {
+    CpuTraceOptions o;
+    o.mode = r.any ? HitMode::kAny : HitMode::kClosest;
+    o.test = r.fast ? TriangleTest::kFast : TriangleTest::kWatertight;
+    o.threads = r.threads;
+    const auto tris = f.triangles();
+    if (r.bvh2) {
+        const auto n = f.bvh2();
+        return trace_bvh2_cpu(n.data(), n.size(), tris.data(), tris.size(), rays.data(), hits.data(), rays.size(), o);
+    }
+    const auto n = f.nodes();
+    return trace_cwbvh_cpu(n.data(), n.size(), tris.data(), tris.size(), rays.data(), hits.data(), rays.size(), o);
+}
+
+}  // namespace
+
+int run_trace(int argc, char** argv) {
+    const char* usage =
+        "usage: cwbvh trace FILE --rays RAYS [--hits HITS] [--any] [--fast] [--bvh2] [--cpu|--gpu] "
+        "[--threads N] [--repeat K]";
+    const char* path = nullptr;
+    const char* rays_path = nullptr;
+    const char* hits_path = nullptr;
+    TraceRequest req;
+    bool gpu = false;
+    uint32_t threads = 0, repeat = 1;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a == "--rays") {
+            if (!(rays_path = option_value(argc, argv, i))) return error(kExitUsage, "trace: --rays needs a path");
+        } else if (a == "--hits") {
+            if (!(hits_path = option_value(argc, argv, i))) return error(kExitUsage, "trace: --hits needs a path");
+        } else if (a == "--any") {
+            req.any = true;
+        } else if (a == "--fast") {
+            req.fast = true;
+        } else if (a == "--bvh2") {
+            req.bvh2 = true;
+        } else if (a == "--cpu") {
+            gpu = false;
+        } else if (a == "--gpu") {
+            gpu = true;
+        } else if (a == "--threads") {
+            if (!parse_u32(option_value(argc, argv, i), 0, 1024, threads))
+                return error(kExitUsage, "trace: --threads needs an integer in [0, 1024]");
+        } else if (a == "--repeat") {
+            if (!parse_u32(option_value(argc, argv, i), 1, 1000, repeat))
+                return error(kExitUsage, "trace: --repeat needs an integer in [1, 1000]");
+        } else if (a.size() > 1 && a[0] == '-') {
+            return error(kExitUsage, ("trace: unknown option " + a).c_str());
+        } else if (path) {
+            return error(kExitUsage, "trace: expects exactly one FILE");
+        } else {
+            path = argv[i];
+        }
+    }
+    if (!path || !rays_path) return error(kExitUsage, usage);
+    req.threads = threads;
+
+    const uint32_t mask = kMaskNodes | kMaskTriangles | (req.bvh2 ? kMaskBvh2 : 0u);
+    auto file = File::open(path, {true, mask});
+    if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
+    if (req.bvh2 && file->bvh2().empty())
+        return error(kExitBadInput, (std::string(path) + ": no BVH2 section (compile with --keep-sbvh)").c_str());
+    std::vector<Ray> rays;
+    std::string err;
+    if (!read_ray_file(rays_path, rays, err)) return error(kExitBadInput, err.c_str());
+    std::vector<Hit> hits(rays.size());
+
+    std::vector<double> secs;
+    CpuTraceStats s;
+    for (uint32_t k = 0; k < repeat; ++k) {
+        if (gpu) {
+            if (!trace_gpu(*file, rays, hits, req, s, err)) return error(kExitBadInput, err.c_str());
+        } else {
+            s = trace_cpu(*file, rays, hits, req);
+        }
+        secs.push_back(s.seconds);
+    }
+    std::sort(secs.begin(), secs.end());
+    const double median = secs[secs.size() / 2];
+    const double n = double(std::max<uint64_t>(s.rays, 1));
+    std::printf("backend          %s (%s, %s, %s)\n", gpu ? "gpu" : "cpu", req.bvh2 ? "bvh2" : "cwbvh",
+                req.any ? "any-hit" : "closest-hit", req.fast ? "fast test" : "watertight test");
+    std::printf("rays             %llu\n", (unsigned long long)s.rays);
+    std::printf("hits             %llu (%.2f%%)\n", (unsigned long long)s.hits, 100.0 * double(s.hits) / n);
+    std::printf("seconds          %.4f (median of %u)\n", median, repeat);
+    std::printf("Mrays/s          %.3f\n", median > 0 ? double(s.rays) / median * 1e-6 : 0.0);
+    std::printf("nodes/ray        %.2f\n", double(s.nodes_visited) / n);
+    std::printf("triangles/ray    %.2f\n", double(s.triangles_tested) / n);
+    if (s.invalid_rays) std::printf("invalid rays     %llu (answered with a miss)\n", (unsigned long long)s.invalid_rays);
+    if (s.stack_overflows || s.bad_indices) {
+        std::printf("stack overflows  %llu\nbad indices      %llu\n", (unsigned long long)s.stack_overflows,
+                    (unsigned long long)s.bad_indices);
+    }
+    if (hits_path) {
+        const uint32_t flags = (req.any ? kHitFileAnyHit : 0u) | (req.fast ? 0u : kHitFileWatertight);
+        if (!write_hit_file(hits_path, hits.data(), hits.size(), flags, err)) return error(kExitBadInput, err.c_str());
+    }
+    return (s.stack_overflows || s.bad_indices) ? kExitBadInput : kExitOk;
+}
+
+}  // namespace cwbvh::tool
