@@ -56,11 +56,13 @@ bool gpu_available(std::string& why) {
     int count = 0;
     const cudaError_t e = cudaGetDeviceCount(&count);
     if (e != cudaSuccess || count == 0) {
-        if (e == cudaErrorInsufficientDriver || (de == cudaSuccess && driver != 0 && driver < runtime)) {
+        if (de != cudaSuccess || driver == 0) {
+            why = "no CUDA driver loaded (libcuda not found)";
+        } else if (e == cudaErrorInsufficientDriver || driver < runtime) {
             why = "CUDA driver too old: driver supports CUDA " + std::to_string(driver / 1000) + "." +
                   std::to_string(driver % 1000 / 10) + ", runtime is " + std::to_string(runtime / 1000) + "." +
                   std::to_string(runtime % 1000 / 10);
-        } else if (e == cudaErrorNoDevice || count == 0 || driver == 0) {
+        } else if (e == cudaErrorNoDevice || count == 0) {
             why = "no CUDA device";
         } else {
             why = std::string("no usable CUDA device: ") + cudaGetErrorName(e) + " (" + cudaGetErrorString(e) + ")";
