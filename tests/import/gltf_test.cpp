@@ -551,3 +551,53 @@ TEST(GltfScenes, MergeGlbAndObj) {
 
 }  // namespace
 }  // namespace cwbvh::compiler::test
+
+namespace cwbvh::compiler::test {
+namespace {
+
+std::string read_all(const std::string& p) {
+    std::ifstream f(p, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+TEST(Draco, DrcFileDecodesAndGarbageIsRejected) {
+    const std::string glb = kScenes + "/bunny_draco.glb";
+    if (!exists(glb)) GTEST_SKIP();
+    // The compressed bufferView is a complete Draco stream; cut it out of the
+    // GLB (trailing bytes after the stream are ignored by the decoder).
+    const std::string bytes = read_all(glb);
+    const size_t at = bytes.find("DRACO");
+    ASSERT_NE(at, std::string::npos);
+    TempDir dir;
+    const auto r = import_files({dir.write("bunny.drc", bytes.substr(at))});
+    ASSERT_TRUE(r.ok) << r.error;
+    EXPECT_EQ(r.scene.triangle_count(), 69666u);
+    // Detected by magic whatever the extension.
+    EXPECT_TRUE(import_files({dir.write("bunny.bin", bytes.substr(at))}).ok);
+    for (size_t cut : {5u, 16u, 64u, 1000u, 20000u}) {
+        const auto t = import_files({dir.write("t.drc", bytes.substr(at, cut))});
+        EXPECT_FALSE(t.ok) << cut;
+    }
+    std::string flipped = bytes.substr(at);
+    for (size_t i = 40; i < flipped.size(); i += 997) flipped[i] = char(flipped[i] ^ 0x5a);
+    const auto f = import_files({dir.write("f.drc", flipped)});  // must not crash
+    if (!f.ok) {
+        EXPECT_NE(f.error.find("f.drc"), std::string::npos);
+    }
+}
+
+TEST(Draco, CorruptDracoInsideGlbIsRejected) {
+    const std::string glb = kScenes + "/bunny_draco.glb";
+    if (!exists(glb)) GTEST_SKIP();
+    std::string bytes = read_all(glb);
+    const size_t at = bytes.find("DRACO");
+    ASSERT_NE(at, std::string::npos);
+    bytes[at] = 'X';  // bad magic inside the compressed bufferView
+    TempDir dir;
+    const auto r = import_files({dir.write("bad.glb", bytes)});
+    ASSERT_FALSE(r.ok);
+    EXPECT_NE(r.error.find("mesh 0 primitive 0"), std::string::npos) << r.error;
+}
+
+}  // namespace
+}  // namespace cwbvh::compiler::test
