@@ -1,0 +1,174 @@
+// Host-side tests of the GPU path: the stack spill/index logic and the warp policies
+// (pure functions shared with the kernel), the no-GPU behaviour of every entry point,
+// and - only when a CUDA device is present - GPU vs CPU traces of a synthetic scene.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "cwbvh/cpu_trace.h"
+#include "cwbvh/cwbvh_device.h"
+#include "cwbvh/device_scene.h"
+#include "cwbvh/gpu_stack.h"
+#include "cwbvh/gpu_trace.h"
+#include "cwbvh/synthetic.h"
+#include "cwbvh/trace.h"
+
+namespace cwbvh {
+namespace {
+
+TEST(GpuStack, SpillsPastSharedEntriesAndPopsInLifoOrder) {
+    constexpr int kLanes = 32, kLane = 5;
+    std::vector<PackedEntry> shared(size_t(kGpuSharedStackEntries) * kLanes, PackedEntry{0xDEADu, 0xDEADu});
+    GpuStack s(shared.data() + kLane, kLanes);
+    for (uint32_t i = 0; i < uint32_t(kGpuStackEntries); ++i) ASSERT_TRUE(s.push(StackEntry{i, 0x01000000u | i}));
+    EXPECT_FALSE(s.push(StackEntry{99u, 99u})) << "a full stack reports overflow instead of writing";
+    // Shared entries land in this lane's column only: [entry][lane].
+    for (int e = 0; e < kGpuSharedStackEntries; ++e) {
+        for (int l = 0; l < kLanes; ++l) {
+            const PackedEntry& p = shared[size_t(e) * kLanes + l];
+            if (l == kLane) {
+                EXPECT_EQ(p.base, uint32_t(e));
+            } else {
+                EXPECT_EQ(p.base, 0xDEADu) << "entry " << e << " lane " << l;
+            }
+        }
+    }
+    for (int i = kGpuStackEntries - 1; i >= 0; --i) {
+        ASSERT_FALSE(s.empty());
+        const StackEntry e = s.pop();
+        EXPECT_EQ(e.base, uint32_t(i));
+        EXPECT_EQ(e.hits, 0x01000000u | uint32_t(i));
+    }
+    EXPECT_TRUE(s.empty());
+}
+
+TEST(GpuStack, SharedLayoutIsConflictFreeForAWarpAtOneDepth) {
+    // 32 lanes at the same depth touch 32 consecutive 8-byte words: byte offsets
+    // lane*8 + entry*256, i.e. two 128-byte wavefronts without a repeated bank.
+    for (int entry = 0; entry < kGpuSharedStackEntries; ++entry) {
+        for (int half = 0; half < 2; ++half) {
+            uint32_t banks = 0;
+            for (int lane = half * 16; lane < half * 16 + 16; ++lane) {
+                const size_t byte = (size_t(entry) * 32 + size_t(lane)) * sizeof(PackedEntry);
+                const uint32_t b0 = uint32_t(byte / 4) % 32, b1 = (b0 + 1) % 32;
+                EXPECT_EQ(banks & ((1u << b0) | (1u << b1)), 0u);
+                banks |= (1u << b0) | (1u << b1);
+            }
+        }
+    }
+}
+
+TEST(GpuPolicy, LostWorkCounter) {
+    EXPECT_EQ(kDynamicFetchNd, 4);
+    EXPECT_EQ(kDynamicFetchNw, 16);
+    EXPECT_EQ(update_lost_work(0, 32), 0);   // full warp: no credit
+    EXPECT_EQ(update_lost_work(0, 28), 0);   // Nd idle lanes are free
+    EXPECT_EQ(update_lost_work(0, 20), 8);   // 12 idle - 4
+    EXPECT_EQ(update_lost_work(8, 20), 16);  // reaches Nw after two such steps
+    EXPECT_EQ(update_lost_work(10, 32), 6);  // a full step pays back credit
+}
+
+TEST(GpuPolicy, PostponeBelowTwentyPercentWithNodeWorkOnly) {
+    EXPECT_TRUE(should_postpone(1, 32, true));
+    EXPECT_TRUE(should_postpone(6, 32, true));    // 18.75%
+    EXPECT_FALSE(should_postpone(7, 32, true));   // 21.9%
+    EXPECT_FALSE(should_postpone(1, 32, false));  // nothing else to do: test now
+    EXPECT_FALSE(should_postpone(1, 5, true));    // 20% exactly is not "fewer than"
+    EXPECT_TRUE(should_postpone(1, 6, true));
+}
+
+TEST(GpuNoDevice, EntryPointsFailCleanly) {
+    std::string why;
+    if (gpu_available(why)) GTEST_SKIP() << "a CUDA device is present";
+    EXPECT_FALSE(why.empty());
+    SceneData sd = make_synthetic_scene();
+    std::string error;
+    auto ds = DeviceScene::upload(sd.nodes.data(), sd.nodes.size(), sd.triangles.data(), sd.triangles.size(),
+                                  sd.bvh2.data(), sd.bvh2.size(), error);
+    EXPECT_FALSE(ds.has_value());
+    EXPECT_NE(error.find("cuda"), std::string::npos) << error;
+    cwbvh_device_scene* out = reinterpret_cast<cwbvh_device_scene*>(0x1);
+    char msg[256];
+    EXPECT_EQ(cwbvh_device_upload(nullptr, &out, msg, sizeof msg), CWBVH_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(out, nullptr);
+    cwbvh_device_free(nullptr);
+}
+
+TEST(GpuCheckTool, SkipsOrPassesOnSyntheticScene) {
+    const std::string exe = std::string(CWBVH_BIN_DIR) + "/cwbvh_gpu_check";
+    FILE* f = std::fopen(exe.c_str(), "rb");
+    if (!f) GTEST_SKIP() << exe << " not built";
+    std::fclose(f);
+    const std::string out = std::string(CWBVH_BINARY_DIR) + "/gpu_check_test_output.txt";
+    const int rc = std::system((exe + " --width 128 --height 96 --repeat 1 > " + out + " 2>&1").c_str());
+    EXPECT_EQ(rc, 0);
+    std::string why;
+    if (!gpu_available(why)) {
+        FILE* o = std::fopen(out.c_str(), "rb");
+        ASSERT_NE(o, nullptr);
+        char buf[256] = {};
+        const size_t n = std::fread(buf, 1, sizeof buf - 1, o);
+        std::fclose(o);
+        EXPECT_EQ(std::string(buf, n).rfind("SKIPPED: no CUDA device", 0), 0u) << buf;
+    }
+}
+
+TEST(GpuTrace, MatchesCpuOnSyntheticScene) {
+    std::string why;
+    if (!gpu_available(why)) GTEST_SKIP() << "SKIPPED: no CUDA device (" << why << ")";
+    SyntheticOptions so;
+    so.triangles = 3000;
+    SceneData sd = make_synthetic_scene(so);
+    std::string error;
+    auto ds = DeviceScene::upload(sd.nodes.data(), sd.nodes.size(), sd.triangles.data(), sd.triangles.size(),
+                                  sd.bvh2.data(), sd.bvh2.size(), error);
+    ASSERT_TRUE(ds.has_value()) << error;
+    // Rays from above the grid, straight down and oblique, plus invalid ones.
+    std::vector<Ray> rays;
+    for (int i = 0; i < 20000; ++i) {
+        const float x = sd.bounds.lo[0] + (sd.bounds.hi[0] - sd.bounds.lo[0]) * float(i % 200) / 199.0f;
+        const float y = sd.bounds.lo[1] + (sd.bounds.hi[1] - sd.bounds.lo[1]) * float(i / 200) / 99.0f;
+        Ray r{{x, y, sd.bounds.hi[2] + 1.0f}, 0.0f, {0.01f * float(i % 7), -0.02f * float(i % 5), -1.0f}, kInfinity};
+        if (i % 997 == 0) r.dir[0] = r.dir[1] = r.dir[2] = 0.0f;  // invalid: miss
+        rays.push_back(r);
+    }
+    const size_t n = rays.size();
+    Ray* d_rays = nullptr;
+    Hit* d_hits = nullptr;
+    ASSERT_EQ(cudaMalloc(reinterpret_cast<void**>(&d_rays), n * sizeof(Ray)), cudaSuccess);
+    ASSERT_EQ(cudaMalloc(reinterpret_cast<void**>(&d_hits), n * sizeof(Hit)), cudaSuccess);
+    ASSERT_EQ(cudaMemcpy(d_rays, rays.data(), n * sizeof(Ray), cudaMemcpyHostToDevice), cudaSuccess);
+    for (int any = 0; any < 2; ++any) {
+        std::vector<Hit> ref(n);
+        CpuTraceOptions co;
+        co.mode = any ? HitMode::kAny : HitMode::kClosest;
+        trace_cwbvh_cpu(sd.nodes.data(), sd.nodes.size(), sd.triangles.data(), sd.triangles.size(), rays.data(),
+                        ref.data(), n, co);
+        for (int bvh2 = 0; bvh2 < 2; ++bvh2) {
+            DeviceTraceStats st;
+            TraceOptions to;
+            to.stats = &st;
+            const Query q = any ? Query::kAny : Query::kClosest;
+            if (bvh2) trace_bvh2(*ds, d_rays, d_hits, n, q, nullptr, to);
+            else trace(*ds, d_rays, d_hits, n, q, nullptr, to);
+            std::vector<Hit> got(n);
+            ASSERT_EQ(cudaMemcpy(got.data(), d_hits, n * sizeof(Hit), cudaMemcpyDeviceToHost), cudaSuccess);
+            EXPECT_EQ(st.stack_overflows, 0u);
+            EXPECT_EQ(st.bad_indices, 0u);
+            size_t bad = 0;
+            for (size_t i = 0; i < n; ++i) {
+                const bool gh = got[i].prim != kMissPrim, ch = ref[i].prim != kMissPrim;
+                if (gh != ch || (!any && gh && got[i].t != ref[i].t)) ++bad;
+            }
+            EXPECT_EQ(bad, 0u) << (bvh2 ? "bvh2" : "cwbvh") << (any ? " any" : " closest");
+        }
+    }
+    cudaFree(d_rays);
+    cudaFree(d_hits);
+}
+
+}  // namespace
+}  // namespace cwbvh
