@@ -1,0 +1,126 @@
+// minimal_render: load a .cwbvh at start-up, trace one frame of primary rays on the
+// GPU (cwbvh/gpu_trace.h) or, without a usable GPU, on the CPU (cwbvh_cpu_trace),
+// shade by |cos| between the view ray and the geometric normal, write a binary PPM.
+//
+// usage: minimal_render SCENE.cwbvh OUT.ppm [WIDTH HEIGHT] [--cpu]
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "cwbvh/cpu_trace.h"
+#include "cwbvh/gpu_trace.h"
+#include "cwbvh/loader.h"
+
+int main(int argc, char** argv) {
+    using namespace cwbvh;
+    if (argc < 3) {
+        std::fprintf(stderr, "usage: minimal_render SCENE.cwbvh OUT.ppm [WIDTH HEIGHT] [--cpu]\n");
+        return 2;
+    }
+    int w = 640, h = 480;
+    bool force_cpu = false;
+    std::vector<std::string> pos;
+    for (int i = 1; i < argc; ++i) {
+        if (std::string(argv[i]) == "--cpu") force_cpu = true;
+        else pos.push_back(argv[i]);
+    }
+    if (pos.size() >= 4) {
+        w = std::atoi(pos[2].c_str());
+        h = std::atoi(pos[3].c_str());
+    }
+    if (w <= 0 || h <= 0) return 2;
+
+    Expected<File> file = File::open(pos[0]);
+    if (!file.ok()) {
+        std::fprintf(stderr, "%s\n", file.error().message.c_str());
+        return 1;
+    }
+    const SceneBounds b = file->bounds() ? *file->bounds() : SceneBounds{{-1, -1, -1}, {1, 1, 1}};
+
+    // Camera: on a diagonal of the bounds, looking at the centre, 50 degree vertical fov.
+    float c[3], e[3], diag = 0;
+    for (int a = 0; a < 3; ++a) {
+        c[a] = 0.5f * (b.lo[a] + b.hi[a]);
+        diag += (b.hi[a] - b.lo[a]) * (b.hi[a] - b.lo[a]);
+    }
+    diag = std::sqrt(diag);
+    e[0] = c[0] + 0.55f * diag, e[1] = c[1] + 0.35f * diag, e[2] = c[2] + 0.8f * diag;
+    float f[3] = {c[0] - e[0], c[1] - e[1], c[2] - e[2]};
+    auto normalize = [](float* v) {
+        const float l = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+        for (int a = 0; a < 3; ++a) v[a] /= l;
+    };
+    normalize(f);
+    float r[3] = {-f[2], 0.0f, f[0]};
+    normalize(r);
+    const float u[3] = {r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2], r[0] * f[1] - r[1] * f[0]};
+    const float th = std::tan(25.0f * 3.14159265f / 180.0f), aspect = float(w) / float(h);
+    std::vector<Ray> rays(size_t(w) * h);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const float px = (2.0f * (x + 0.5f) / w - 1.0f) * th * aspect, py = (1.0f - 2.0f * (y + 0.5f) / h) * th;
+            Ray& ray = rays[size_t(y) * w + x];
+            for (int a = 0; a < 3; ++a) {
+                ray.org[a] = e[a];
+                ray.dir[a] = f[a] + px * r[a] + py * u[a];
+            }
+            ray.tmin = 0.0f;
+            ray.tmax = kInfinity;
+        }
+
+    std::vector<Hit> hits(rays.size());
+    std::string why;
+    if (!force_cpu && gpu_available(why)) {
+        const GpuTraceResult res = trace_on_gpu(*file, rays.data(), hits.data(), rays.size(), false, GpuKernel::kCwbvh);
+        if (!res.ok) {
+            std::fprintf(stderr, "GPU trace failed: %s\n", res.error.c_str());
+            return 1;
+        }
+        std::printf("GPU (%s): %zu rays, kernel %.3f ms, %.1f Mrays/s\n", res.device_name.c_str(), rays.size(),
+                    res.kernel_ms, res.mrays_per_s);
+    } else {
+        if (!force_cpu) std::printf("no GPU (%s): tracing on the CPU\n", why.c_str());
+        const CpuTraceStats s = trace_cwbvh_cpu(file->nodes().data(), file->nodes().size(), file->triangles().data(),
+                                                file->triangles().size(), rays.data(), hits.data(), rays.size());
+        std::printf("CPU: %zu rays, %.3f s, %.2f Mrays/s\n", rays.size(), s.seconds,
+                    s.seconds > 0 ? double(rays.size()) / s.seconds / 1e6 : 0.0);
+    }
+
+    std::vector<const TriangleRecord*> by_prim;
+    for (const TriangleRecord& t : file->triangles()) {
+        if (t.prim >= by_prim.size()) by_prim.resize(size_t(t.prim) + 1, nullptr);
+        if (!by_prim[t.prim]) by_prim[t.prim] = &t;
+    }
+    std::vector<unsigned char> img(size_t(w) * h * 3);
+    for (size_t i = 0; i < hits.size(); ++i) {
+        float shade = 0.1f;
+        if (hits[i].prim != kMissPrim && hits[i].prim < by_prim.size() && by_prim[hits[i].prim]) {
+            const TriangleRecord& t = *by_prim[hits[i].prim];
+            float e1[3], e2[3];
+            for (int a = 0; a < 3; ++a) {
+                e1[a] = t.v1[a] - t.v0[a];
+                e2[a] = t.v2[a] - t.v0[a];
+            }
+            float n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+            float d[3] = {rays[i].dir[0], rays[i].dir[1], rays[i].dir[2]};
+            normalize(n);
+            normalize(d);
+            shade = 0.2f + 0.8f * std::fabs(n[0] * d[0] + n[1] * d[1] + n[2] * d[2]);
+            if (!(shade == shade)) shade = 0.2f;
+        }
+        const unsigned char v = (unsigned char)(std::fmin(shade, 1.0f) * 255.0f);
+        img[3 * i] = v;
+        img[3 * i + 1] = v;
+        img[3 * i + 2] = (unsigned char)(hits[i].prim == kMissPrim ? 60 : v);
+    }
+    FILE* out = std::fopen(pos[1].c_str(), "wb");
+    if (!out) {
+        std::perror(pos[1].c_str());
+        return 1;
+    }
+    std::fprintf(out, "P6\n%d %d\n255\n", w, h);
+    const bool ok = std::fwrite(img.data(), 1, img.size(), out) == img.size();
+    return (std::fclose(out) == 0 && ok) ? 0 : 1;
+}
