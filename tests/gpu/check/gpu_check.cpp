@@ -1,7 +1,7 @@
 // cwbvh_gpu_check: the GPU correctness check and benchmark in one plain executable
 // (no GoogleTest: the GPU machine has none). For each scene it generates rays in
 // process (pinhole primary rays over the scene bounds, then diffuse bounces 1..4
-// from the CPU reference hits), traces them with the CPU reference
+// from the CPU reference hits, one ray per primary hit: see bounce_rays), traces them with the CPU reference
 // (cwbvh_cpu_trace, watertight), the CWBVH kernel and the BVH2 kernel, compares,
 // times, and prints a table last.
 //
@@ -139,45 +139,55 @@ std::vector<Ray> primary_rays(const SceneBounds& b, int w, int h) {
     return rays;
 }
 
-/// Cosine-weighted diffuse bounce from every hit; misses produce no ray.
-std::vector<Ray> bounce_rays(const std::vector<Ray>& in, const std::vector<Hit>& hits,
+/// Cosine-weighted diffuse ray leaving the hit of `r` (false for a miss or a
+/// degenerate triangle).
+bool spawn(const Ray& r, const Hit& hit, const std::vector<const TriangleRecord*>& by_prim, float eps, Rng& rng,
+           Ray& o) {
+    if (hit.prim == kMissPrim || hit.prim >= by_prim.size() || !by_prim[hit.prim]) return false;
+    const TriangleRecord& t = *by_prim[hit.prim];
+    float p[3], e1[3], e2[3], n[3];
+    for (int a = 0; a < 3; ++a) {
+        p[a] = r.org[a] + hit.t * r.dir[a];
+        e1[a] = t.v1[a] - t.v0[a];
+        e2[a] = t.v2[a] - t.v0[a];
+    }
+    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    const float l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(l > 0.0f) || !std::isfinite(l)) return false;
+    for (float& v : n) v /= l;
+    if (n[0] * r.dir[0] + n[1] * r.dir[1] + n[2] * r.dir[2] > 0.0f)
+        for (float& v : n) v = -v;
+    // Orthonormal basis (Duff et al. 2017).
+    const float sign = std::copysign(1.0f, n[2]);
+    const float aa = -1.0f / (sign + n[2]), bb = n[0] * n[1] * aa;
+    const float tb[3] = {1.0f + sign * n[0] * n[0] * aa, sign * bb, -sign * n[0]};
+    const float bt[3] = {bb, sign + n[1] * n[1] * aa, -n[1]};
+    const float u1 = rng.next(), u2 = rng.next();
+    const float rad = std::sqrt(u1), phi = 6.2831853f * u2;
+    const float lx = rad * std::cos(phi), ly = rad * std::sin(phi), lz = std::sqrt(std::max(0.0f, 1.0f - u1));
+    for (int a = 0; a < 3; ++a) {
+        o.org[a] = p[a];
+        o.dir[a] = lx * tb[a] + ly * bt[a] + lz * n[a];
+    }
+    o.tmin = eps;
+    o.tmax = kInfinity;
+    return true;
+}
+
+/// Diffuse bounce k: one ray per primary hit ("path"). A path whose previous
+/// bounce hit continues from that hit; one that escaped restarts from its primary
+/// hit with a fresh direction, so every bounce set has as many rays as the primary
+/// set has hits (otherwise bounce 4 of an open scene is a handful of rays).
+std::vector<Ray> bounce_rays(const std::vector<Ray>& prev, const std::vector<Hit>& prev_hits,
+                             const std::vector<Ray>& anchors, const std::vector<Hit>& anchor_hits,
                              const std::vector<const TriangleRecord*>& by_prim, float eps, uint64_t seed) {
-    std::vector<Ray> out;
-    out.reserve(in.size());
+    std::vector<Ray> out(anchors.size());
     Rng rng{seed};
-    for (size_t i = 0; i < in.size(); ++i) {
-        if (hits[i].prim == kMissPrim || hits[i].prim >= by_prim.size() || !by_prim[hits[i].prim]) continue;
-        const TriangleRecord& t = *by_prim[hits[i].prim];
-        const Ray& r = in[i];
-        float p[3], e1[3], e2[3], n[3];
-        for (int a = 0; a < 3; ++a) {
-            p[a] = r.org[a] + hits[i].t * r.dir[a];
-            e1[a] = t.v1[a] - t.v0[a];
-            e2[a] = t.v2[a] - t.v0[a];
-        }
-        n[0] = e1[1] * e2[2] - e1[2] * e2[1];
-        n[1] = e1[2] * e2[0] - e1[0] * e2[2];
-        n[2] = e1[0] * e2[1] - e1[1] * e2[0];
-        float l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        if (!(l > 0.0f)) continue;
-        for (float& v : n) v /= l;
-        if (n[0] * r.dir[0] + n[1] * r.dir[1] + n[2] * r.dir[2] > 0.0f) for (float& v : n) v = -v;
-        // Orthonormal basis (Duff et al. 2017).
-        const float sign = std::copysign(1.0f, n[2]);
-        const float aa = -1.0f / (sign + n[2]), bb = n[0] * n[1] * aa;
-        const float tb[3] = {1.0f + sign * n[0] * n[0] * aa, sign * bb, -sign * n[0]};
-        const float bt[3] = {bb, sign + n[1] * n[1] * aa, -n[1]};
-        const float u1 = rng.next(), u2 = rng.next();
-        const float rad = std::sqrt(u1), phi = 6.2831853f * u2;
-        const float lx = rad * std::cos(phi), ly = rad * std::sin(phi), lz = std::sqrt(std::max(0.0f, 1.0f - u1));
-        Ray o;
-        for (int a = 0; a < 3; ++a) {
-            o.org[a] = p[a];
-            o.dir[a] = lx * tb[a] + ly * bt[a] + lz * n[a];
-        }
-        o.tmin = eps;
-        o.tmax = kInfinity;
-        out.push_back(o);
+    for (size_t i = 0; i < anchors.size(); ++i) {
+        const bool cont = i < prev.size() && spawn(prev[i], prev_hits[i], by_prim, eps, rng, out[i]);
+        if (!cont && !spawn(anchors[i], anchor_hits[i], by_prim, eps, rng, out[i])) out[i] = anchors[i];
     }
     return out;
 }
@@ -335,6 +345,8 @@ int main(int argc, char** argv) {
             }
 
             std::vector<Ray> rays = primary_rays(s.bounds, width, height);
+            std::vector<Ray> anchors;
+            std::vector<Hit> anchor_hits;
             for (int bounce = 0; bounce <= 4; ++bounce) {
                 std::vector<Hit> ref(rays.size()), ref_any(rays.size());
                 CpuTraceOptions co;
@@ -389,7 +401,18 @@ int main(int argc, char** argv) {
                         }
                     }
                 }
-                if (bounce < 4) rays = bounce_rays(rays, ref, by_prim, eps, 0x9E3779B97F4A7C15ull * (bounce + 1));
+                if (bounce == 0) {
+                    for (size_t i = 0; i < rays.size(); ++i) {
+                        if (ref[i].prim == kMissPrim) continue;
+                        anchors.push_back(rays[i]);
+                        anchor_hits.push_back(ref[i]);
+                    }
+                    rays.clear();
+                    ref.clear();
+                }
+                if (bounce < 4)
+                    rays = bounce_rays(rays, ref, anchors, anchor_hits, by_prim, eps,
+                                       0x9E3779B97F4A7C15ull * uint64_t(bounce + 1));
             }
         }
     } catch (const std::exception& e) {
