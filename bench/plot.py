@@ -8,10 +8,7 @@ import json
 import os
 import sys
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+plt = None  # matplotlib.pyplot, imported by make_all (tables need no matplotlib)
 
 
 def _load(d):
@@ -301,18 +298,28 @@ def tables(d, res):
         f.write("".join(s))
 
 
-def make_all(d):
+def make_all(d, tables_only=False):
+    global plt
     res = _load(d)
+    tables(d, res)
+    if tables_only:
+        return
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as pyplot
+
+    plt = pyplot
     plot_error(d, res)
     plot_build(d, res)
     plot_traffic(d, res)
     plot_memory(d, res)
     plot_load(d, res)
     plot_cpu(d)
-    tables(d, res)
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
-        sys.exit("usage: plot.py RESULTS_DIR")
-    make_all(sys.argv[1])
+    args = [a for a in sys.argv[1:] if a != "--tables-only"]
+    if len(args) != 1:
+        sys.exit("usage: plot.py [--tables-only] RESULTS_DIR")
+    make_all(args[0], tables_only="--tables-only" in sys.argv)
