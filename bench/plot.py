@@ -3,7 +3,6 @@
 
     python3 bench/plot.py DIR        (reads DIR/results.json, writes DIR/*.png and DIR/tables.md)
 """
-import glob
 import json
 import os
 import sys
@@ -176,43 +175,23 @@ def plot_load(d, res):
     _save(fig, d, "load_time.png")
 
 
-def plot_cpu(d):
-    """Mrays/s vs Embree from the CPU-trace benchmark's JSON, when present."""
-    files = sorted(glob.glob(os.path.join(d, "cpu_trace*.json")))
-    if not files:
-        return False
-    rows = []
-    for f in files:
-        try:
-            with open(f) as fh:
-                j = json.load(fh)
-        except (OSError, ValueError):
-            continue
-        rows += j.get("rows", j if isinstance(j, list) else [])
-    rows = [r for r in rows if isinstance(r, dict) and "mrays_per_s" in r and "scene" in r]
+def plot_cpu(d, res):
+    """Mrays/s per scene, CWBVH CPU reference traversal vs Embree rtcIntersect1 (bench/cpu)."""
+    rows = [r for r in res.get("cpu_trace", []) if r["query"] == "closest"]
     if not rows:
-        return False
+        return
     scenes = _scenes(rows)
-    keys = []
-    for r in rows:
-        k = "%s %s %s %st" % (r.get("tracer", r.get("engine", "?")), r.get("rays", ""), r.get("mode", ""),
-                             r.get("threads", ""))
-        if k not in keys:
-            keys.append(k)
-    series = []
-    for k in keys:
-        vals = []
-        for s in scenes:
-            v = [r["mrays_per_s"] for r in rows if r["scene"] == s and
-                 "%s %s %s %st" % (r.get("tracer", r.get("engine", "?")), r.get("rays", ""), r.get("mode", ""),
-                                   r.get("threads", "")) == k]
-            vals.append(v[0] if v else float("nan"))
-        series.append((k, vals))
-    fig, ax = plt.subplots(figsize=(max(7, 1.3 * len(scenes) + 4), 4.5))
-    _bar_groups(ax, scenes, series, ylabel="Mrays/s")
-    ax.set_title("CPU traversal throughput (bench/cpu)", fontsize=9)
+    fig, axes = plt.subplots(1, 2, figsize=(max(10, 2 * len(scenes) + 4), 4.2))
+    for ax, rays in zip(axes, ("primary", "diffuse")):
+        series = []
+        for th in (1, 2):
+            for eng in ("cwbvh", "embree"):
+                series.append(("%s %dt" % ("CWBVH (CPU ref.)" if eng == "cwbvh" else "Embree", th),
+                               [next((r[eng + "_mrays"] for r in rows if r["scene"] == s and r["rays"] == rays and
+                                      r["threads"] == th), float("nan")) for s in scenes]))
+        _bar_groups(ax, scenes, series, ylabel="Mrays/s (closest hit)")
+        ax.set_title("%s rays" % rays, fontsize=9)
     _save(fig, d, "mrays_vs_embree.png")
-    return True
 
 
 def _md(headers, rows):
@@ -294,6 +273,13 @@ def tables(d, res):
                   (r["brute_check_disagreements"], r["brute_check_rays"])] for r in res["error_meta"]]
     s.append("\n" + _md(["scene", "primary rays", "diffuse rays", "relative t tolerance",
                          "accelerated oracle vs brute force (disagreements/rays)"], meta_rows))
+    cpu = res.get("cpu_trace", [])
+    if cpu:
+        rows = [[r["scene"], r["rays"], r["count"], r["query"], r["threads"], "%.2f" % r["cwbvh_mrays"],
+                 "%.2f" % r["embree_mrays"], "%.2f" % r["ratio"]] for r in cpu]
+        s.append("\n### CPU throughput, CWBVH reference traversal vs Embree rtcIntersect1/rtcOccluded1 (bench/cpu)\n\n")
+        s.append(_md(["scene", "rays", "count", "query", "threads", "CWBVH Mrays/s", "Embree Mrays/s",
+                      "CWBVH/Embree"], rows))
     with open(os.path.join(d, "tables.md"), "w") as f:
         f.write("".join(s))
 
@@ -315,7 +301,7 @@ def make_all(d, tables_only=False):
     plot_traffic(d, res)
     plot_memory(d, res)
     plot_load(d, res)
-    plot_cpu(d)
+    plot_cpu(d, res)
 
 
 if __name__ == "__main__":

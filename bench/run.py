@@ -104,7 +104,7 @@ class Bench:
             if not os.access(p, os.X_OK):
                 sys.exit("run.py: %s not found: build first (cmake --build %s)" % (p, args.build_dir))
         self.work = tempfile.mkdtemp(prefix="cwbvh-bench-")
-        self.rows = {k: [] for k in ("build", "embree_build", "trees", "traffic", "load", "error", "error_meta")}
+        self.rows = {k: [] for k in ("build", "embree_build", "trees", "traffic", "load", "error", "error_meta", "cpu_trace")}
 
     # ---- 1. build -------------------------------------------------------------------------
     def compile(self, mesh, out, builder, collapse, threads, extra=()):
@@ -232,20 +232,21 @@ class Bench:
         log("%s error done (brute-force check: %d disagreements of %d)" %
             (name, j["brute_check"]["disagreements"], j["brute_check"]["rays"]))
 
-    # ---- other engineer's CPU throughput bench, when present ------------------------------------
-    def bench_cpu(self, scenes):
-        exe = os.path.join(self.bin, "bench_cpu_trace")
+    # ---- CPU throughput vs Embree: bench/cpu's cwbvh_bench_cpu, when built ----------------------
+    def bench_cpu(self, name, main):
+        exe = os.path.join(self.bin, "cwbvh_bench_cpu")
         if not os.access(exe, os.X_OK):
-            log("bench_cpu_trace not built: Mrays/s vs Embree plot skipped")
             return
-        out = os.path.join(self.args.out, "cpu_trace.json")
-        try:
-            r = subprocess.run([exe, "--json", out] + [m for _, m in scenes], stderr=subprocess.PIPE, text=True,
-                               stdout=subprocess.DEVNULL, timeout=1200)
-            if r.returncode != 0:
-                log("bench_cpu_trace failed: " + r.stderr[-500:])
-        except Exception as e:  # noqa: BLE001 -- optional peer tool; its failure must not stop the run
-            log("bench_cpu_trace not run: %s" % e)
+        out = os.path.join(self.work, name + "_cpu.json")
+        run([exe, main, "--size", str(self.args.cpu_size), "--repeats", str(self.args.repeats), "--threads-max", "2",
+             "--json", out])
+        with open(out) as f:
+            j = json.load(f)
+        for r in j["results"]:
+            r = dict(r)
+            r["scene"] = name
+            self.rows["cpu_trace"].append(r)
+        log("%s cpu trace vs Embree done" % name)
 
     def go(self, scenes):
         a = self.args
@@ -268,6 +269,7 @@ class Bench:
             self.bench_traffic(name, files["main"])
             self.bench_load(name, mesh, files["main"])
             self.bench_error(name, files)
+            self.bench_cpu(name, files["main"])
             for f in os.listdir(self.work):
                 if f.startswith(name + "_"):
                     os.remove(os.path.join(self.work, f))
@@ -323,6 +325,7 @@ def main():
     a.traffic_res = 128 if a.quick else 256
     a.error_res = 64 if a.quick else 160
     a.load_repeats = 3 if a.quick else 5
+    a.cpu_size = 128 if a.quick else 256
     names = a.scenes or (QUICK_SCENES if a.quick else [n for n, _ in DEFAULT_SCENES])
     scenes = []
     for item in names:
@@ -335,8 +338,6 @@ def main():
         sys.exit("run.py: no scenes")
     b = Bench(a)
     meta = b.go(scenes)
-    b.args.out = a.out
-    b.bench_cpu(scenes)
     plot_py = os.path.join(os.path.dirname(os.path.abspath(__file__)), "plot.py")
     done = False
     if not a.no_plots:
