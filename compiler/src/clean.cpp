@@ -104,11 +104,10 @@ bool clean_and_append(const RawInput& input, uint32_t input_index, Scene& scene,
             error = "the merged scene exceeds 2^32-1 vertices or triangles";
             return false;
         }
-        scene.vertices.reserve(next);
         for (size_t i = 0; i < nv; ++i)
             if (remap[i] != kInvalidIndex) scene.vertices.push_back(prim.vertices[i]);
-        scene.indices.reserve(scene.indices.size() + kept.size());
-        scene.sources.reserve(scene.sources.size() + kept.size());
+        // No exact reserve() here: with many primitives it would defeat the
+        // vector's geometric growth and make merging quadratic.
         for (uint32_t t : kept) {
             const auto& tri = prim.triangles[t];
             scene.indices.push_back({remap[tri[0]], remap[tri[1]], remap[tri[2]]});

@@ -5,7 +5,7 @@
 //
 // OpenMesh's ImporterT silently drops faces with repeated or invalid vertex
 // indices (printing to omerr()) and re-adds non-manifold faces with duplicated
-// vertices. We capture omerr()/omlog() during the read, and compare the face
+// vertices. We capture omerr()/omlog()/omout() during the read, and compare the face
 // count read with the count the file announces (PLY/OFF header, binary STL
 // header) or that a cheap line scan finds (OBJ `f` lines, ASCII STL `facet`
 // lines), reporting any difference as a warning. Dropped faces are not in
@@ -44,39 +44,42 @@ struct MeshTraits : public OpenMesh::DefaultTraits {
 };
 using Mesh = OpenMesh::PolyMesh_ArrayKernelT<MeshTraits>;
 
-/// Redirects OpenMesh's omerr()/omlog()/omout() into a string for the
-/// lifetime of the object (the import is single-threaded).
+/// Captures OpenMesh's omerr()/omlog()/omout() for one read. OpenMesh's
+/// mostream::disconnect() leaks the target wrapper that connect() allocated,
+/// so the streams are redirected ONCE per process into a buffer owned here
+/// (never back to std::cerr; nothing else in cwbvhc uses OpenMesh, see
+/// CONTRIBUTING's adapter rule) and each read starts by clearing it. The
+/// import is single-threaded.
 class OmCapture {
 public:
     OmCapture() {
-        for (OpenMesh::mostream* s : streams()) {
-            s->disconnect(std::cerr);
-            s->disconnect(std::cout);
-            s->connect(text_);
-        }
+        static const bool redirected = [] {
+            for (OpenMesh::mostream* s : {&omerr(), &omlog(), &omout()}) {
+                s->disconnect(std::cerr);
+                s->disconnect(std::cout);
+                s->connect(buffer());
+            }
+            return true;
+        }();
+        (void)redirected;
+        buffer().str(std::string());
     }
-    ~OmCapture() {
-        for (OpenMesh::mostream* s : streams()) {
-            s->flush();
-            s->disconnect(text_);
-            s->connect(std::cerr);
-        }
-    }
-    OmCapture(const OmCapture&) = delete;
-    OmCapture& operator=(const OmCapture&) = delete;
     std::vector<std::string> error_lines() {
-        omerr().flush();
+        for (OpenMesh::mostream* s : {&omerr(), &omlog(), &omout()}) s->flush();
         std::vector<std::string> lines;
-        std::istringstream in(text_.str());
+        std::istringstream in(buffer().str());
         std::string line;
         while (std::getline(in, line))
             if (!line.empty()) lines.push_back(line);
+        buffer().str(std::string());
         return lines;
     }
 
 private:
-    static std::array<OpenMesh::mostream*, 3> streams() { return {&omerr(), &omlog(), &omout()}; }
-    std::ostringstream text_;
+    static std::ostringstream& buffer() {
+        static std::ostringstream* text = new std::ostringstream;  // outlives OpenMesh's statics
+        return *text;
+    }
 };
 
 std::string lower_extension(const std::string& path) {

@@ -1,0 +1,31 @@
+// libFuzzer target for the import stage (glTF, GLB, OBJ, PLY, Draco).
+// The first input byte picks the file extension; the rest is the file.
+// Build: see CMakeLists.txt here (clang, -fsanitize=fuzzer,address,undefined).
+// Run:   ./fuzz_import -max_len=65536 corpus/   (seed with tiny .gltf/.obj files)
+#include <unistd.h>
+
+#include <cstdint>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "cwbvh/compiler/import.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+    if (size < 1) return 0;
+    static const char* kExt[] = {".gltf", ".glb", ".obj", ".ply", ".off", ".stl", ".drc"};
+    const std::string path = "/tmp/cwbvh_fuzz_import_" + std::to_string(getpid()) +
+                             kExt[data[0] % (sizeof kExt / sizeof kExt[0])];
+    if (FILE* f = std::fopen(path.c_str(), "wb")) {
+        std::fwrite(data + 1, 1, size - 1, f);
+        std::fclose(f);
+    } else {
+        return 0;
+    }
+    cwbvh::compiler::Scene scene;
+    std::string error;
+    std::vector<std::string> warnings;
+    (void)cwbvh::compiler::import_scene({path}, {}, scene, error, warnings);
+    std::remove(path.c_str());
+    return 0;
+}
