@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The main job on the default scene: install dependencies, build, compile the
 # Stanford bunny (Debian's glmark2-data) into out/bunny.cwbvh, validate it,
-# describe it and render it to out/bunny.png.
+# describe it and render it to out/bunny.png (plus a traversal heatmap).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -16,7 +16,6 @@ mkdir -p out
 build/bin/cwbvhc "$SCENE" -o "out/$NAME.cwbvh" --stats-json "out/$NAME.stats.json"
 build/bin/cwbvh validate "out/$NAME.cwbvh"
 build/bin/cwbvh info "out/$NAME.cwbvh"
-if build/bin/cwbvh help 2>/dev/null | grep -q render; then
-  build/bin/cwbvh render "out/$NAME.cwbvh" -o "out/$NAME.png"
-  echo "image: out/$NAME.png"
-fi
+build/bin/cwbvh render "out/$NAME.cwbvh" -o "out/$NAME.png"
+build/bin/cwbvh render "out/$NAME.cwbvh" -o "out/$NAME-heatmap.png" --heatmap
+echo "images: out/$NAME.png (shaded; background shows through any hole) and out/$NAME-heatmap.png (wide nodes visited per ray)"
