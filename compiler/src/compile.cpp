@@ -99,6 +99,7 @@ bool compile(const CompileOptions& options, CompileStats& stats, std::string& er
     EmitResult emitted;
     if (!timer.run("encode", [&] { return encode_scene(emit, emitted, error); })) return false;
     stats.wide_nodes = emitted.wide_nodes;
+    stats.wide_depth = emitted.wide_depth;
     stats.avg_children = emitted.avg_children;
     stats.max_leaf_triangles = emitted.max_leaf_triangles;
     stats.sah_wide = emitted.sah_wide;

@@ -10,6 +10,7 @@
 #include <span>
 
 #include "cwbvh/compiler/collapse.h"
+#include "cwbvh/tree_depth.h"
 #include "cwbvh/writer.h"
 
 namespace cwbvh::compiler {
@@ -80,6 +81,20 @@ bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error) {
     }
     if (in.options->keep_sbvh && !encode_bvh2(*in.binary, *in.wide, out.tree, out.tree.bvh2, error)) return false;
 
+    out.wide_depth = wide_tree_depth(out.tree.nodes);
+    if (out.wide_depth > kMaxWideDepth) {
+        error = "the 8-wide tree is " + std::to_string(out.wide_depth) + " levels deep; the format allows " +
+                std::to_string(kMaxWideDepth) + " (the traversal stack's bound)";
+        return false;
+    }
+    if (in.options->keep_sbvh) {
+        out.bvh2_depth = bvh2_tree_depth(out.tree.bvh2);
+        if (out.bvh2_depth > kMaxBvh2Depth) {
+            error = "the binary SBVH is " + std::to_string(out.bvh2_depth) + " levels deep; the BVH2 section allows " +
+                    std::to_string(kMaxBvh2Depth) + " (the baseline kernel's stack); compile without --keep-sbvh";
+            return false;
+        }
+    }
     out.wide_nodes = out.tree.nodes.size();
     out.avg_children = out.tree.avg_children;
     out.max_leaf_triangles = out.tree.max_leaf_triangles;

@@ -20,6 +20,7 @@ std::string stats_to_json(const CompileStats& s) {
     j["spatial_splits"] = s.spatial_splits;
     j["binary_nodes"] = s.binary_nodes;
     j["wide_nodes"] = s.wide_nodes;
+    j["wide_depth"] = s.wide_depth;
     j["avg_children"] = s.avg_children;
     j["max_leaf_triangles"] = s.max_leaf_triangles;
     j["sah_binary"] = s.sah_binary;
@@ -67,6 +68,7 @@ std::string stats_to_table(const CompileStats& s) {
                                                            : 0.0));
     row("binary nodes", num(s.binary_nodes));
     row("wide nodes", num(s.wide_nodes));
+    row("wide tree depth", num(s.wide_depth));
     row("avg children per node", fmt("%.2f", s.avg_children));
     row("max triangles per leaf", num(s.max_leaf_triangles));
     row("SAH binary / wide", fmt("%.4f", s.sah_binary) + " / " + fmt("%.4f", s.sah_wide));

@@ -1,4 +1,5 @@
 // NODE content rules (spec: "NODE", rules 51xx).
+#include "cwbvh/tree_depth.h"
 #include <cmath>
 #include <vector>
 
@@ -64,6 +65,7 @@ Result check_slot(const CwbvhNode& n, uint64_t i, int s, uint32_t& leaf_bits, in
 Result check_nodes(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count) {
     const uint64_t tri_count = count_of(layout, kSectionTriangles);
     std::vector<uint8_t> parents(count, 0);    // saturates at 2
+    std::vector<uint8_t> depth(count, 1);      // root = 1; a parent precedes its children
     std::vector<uint8_t> tri_used(tri_count, 0);
     for (uint64_t i = 0; i < count; ++i) {
         const auto n = load<CwbvhNode>(payload, i);
@@ -112,6 +114,11 @@ Result check_nodes(const FileLayout& layout, std::span<const uint8_t> payload, u
                 return node_error(rule::kNodeParents, i, "child node " + to_string(n.child_base + c) +
                                                              " already has a parent");
             p = 1;
+            depth[n.child_base + c] = uint8_t(depth[i] + 1);
+            if (depth[n.child_base + c] > kMaxWideDepth)
+                return node_error(rule::kNodeDepth, n.child_base + c, "is at depth " + to_string(depth[n.child_base + c]) +
+                                                                         "; the tree may be at most " +
+                                                                         to_string(kMaxWideDepth) + " levels deep");
         }
     }
     for (uint64_t j = 1; j < count; ++j)

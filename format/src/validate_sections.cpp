@@ -1,4 +1,5 @@
 // Content rules of TRIS, PMAP, BNDS, BILD, BVH2, VERT, INDX, SRCN (52xx-59xx).
+#include "cwbvh/tree_depth.h"
 #include <cmath>
 #include <vector>
 
@@ -79,8 +80,13 @@ Result check_build_info(std::span<const uint8_t> payload) {
 Result check_bvh2(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count) {
     const uint64_t tri_count = count_of(layout, kSectionTriangles);
     std::vector<uint8_t> has_parent(count, 0);
+    std::vector<uint8_t> depth(count, 1);  // root = 1; leaves count as a level
     for (uint64_t i = 0; i < count; ++i) {
         const auto n = load<Bvh2Node>(payload, i);
+        if (depth[i] + 1u > kMaxBvh2Depth)
+            return element_error(rule::kBvh2Depth, "BVH2", "node", i, "has children at depth " +
+                                     to_string(depth[i] + 1u) + "; the tree may be at most " +
+                                     to_string(kMaxBvh2Depth) + " levels deep");
         if (n.reserved[0] != 0 || n.reserved[1] != 0)
             return element_error(rule::kBvh2Reserved, "BVH2", "node", i, "reserved field is not 0");
         float box[12];
@@ -102,6 +108,7 @@ Result check_bvh2(const FileLayout& layout, std::span<const uint8_t> payload, ui
             if (has_parent[child] != 0)
                 return element_error(rule::kBvh2Parents, "BVH2", "node", uint64_t(child), "has two parents");
             has_parent[child] = 1;
+            depth[child] = uint8_t(depth[i] + 1);
         }
     }
     for (uint64_t j = 1; j < count; ++j)

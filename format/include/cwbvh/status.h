@@ -73,6 +73,7 @@ inline constexpr uint32_t kNodeTriangleUse = 5109;
 inline constexpr uint32_t kNodePlaneOrder = 5110;
 inline constexpr uint32_t kNodeEmptySlot = 5111;
 inline constexpr uint32_t kNodeNonFinite = 5112;
+inline constexpr uint32_t kNodeDepth = 5113;
 // 52xx: TRIS
 inline constexpr uint32_t kTriPrim = 5201;
 inline constexpr uint32_t kTriReserved = 5202;
@@ -89,6 +90,7 @@ inline constexpr uint32_t kBvh2Leaf = 5602;
 inline constexpr uint32_t kBvh2Reserved = 5603;
 inline constexpr uint32_t kBvh2NonFinite = 5604;
 inline constexpr uint32_t kBvh2Parents = 5605;
+inline constexpr uint32_t kBvh2Depth = 5606;
 // 57xx: VERT
 inline constexpr uint32_t kVertNonFinite = 5701;
 // 58xx: INDX
@@ -103,9 +105,9 @@ inline constexpr uint32_t kAll[] = {
     kSectionOutsideFile, kSectionOverlapsHeader, kSectionOverlap, kDuplicateSection, kUnknownRequiredSection,
     kElementSize, kElementCount, kMissingSection, kNonZeroPadding, kSectionChecksum, kNodeExponent, kNodeMeta,
     kNodeImask, kNodeChildRange, kNodeChildOrder, kNodeParents, kNodeLeafRange, kNodeLeafLayout,
-    kNodeTriangleUse, kNodePlaneOrder, kNodeEmptySlot, kNodeNonFinite, kTriPrim, kTriReserved, kTriNonFinite,
+    kNodeTriangleUse, kNodePlaneOrder, kNodeEmptySlot, kNodeNonFinite, kNodeDepth, kTriPrim, kTriReserved, kTriNonFinite,
     kPmapInput, kBoundsInvalid, kBuildReserved, kBvh2Child, kBvh2Leaf, kBvh2Reserved, kBvh2NonFinite,
-    kBvh2Parents, kVertNonFinite, kIndexRange, kNamesTerminator,
+    kBvh2Parents, kBvh2Depth, kVertNonFinite, kIndexRange, kNamesTerminator,
 };
 }  // namespace rule
 

@@ -34,6 +34,7 @@ struct CompileStats {
     uint64_t spatial_splits = 0;
     uint64_t binary_nodes = 0;
     uint64_t wide_nodes = 0;
+    uint32_t wide_depth = 0;
     double avg_children = 0;
     uint32_t max_leaf_triangles = 0;
     double sah_binary = 0;

@@ -30,6 +30,8 @@ struct EmitResult {
     SceneBounds bounds{};
     std::vector<uint8_t> source_names;  ///< SRCN payload
     uint64_t wide_nodes = 0;
+    uint32_t wide_depth = 0;   ///< levels of NODE (root = 1)
+    uint32_t bvh2_depth = 0;   ///< levels of BVH2 incl. leaves (only with keep_sbvh)
     double avg_children = 0;
     uint32_t max_leaf_triangles = 0;
     double sah_wide = 0;
