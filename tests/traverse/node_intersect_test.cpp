@@ -179,6 +179,40 @@ TEST(NodeIntersect, NeverMissesExactlyHitChild) {
     EXPECT_GT(exact_hits, tested / 10);
 }
 
+TEST(NodeIntersect, ScalarAndSimdAgreeBitForBit) {
+    // intersect_node_scalar (device, non-SSE hosts) and the host SIMD path must give
+    // the same mask for every node, including malformed metas and extreme exponents,
+    // so the CPU reference and the GPU kernels visit the same children.
+    Gen g(777);
+    uint64_t tested = 0, differ = 0;
+    for (int iter = 0; iter < 200000; ++iter) {
+        const int k = g.coin(0.2) ? g.irange(-120, 120) : g.irange(-4, 4);
+        CwbvhNode n = random_node(g, k);
+        if (g.coin(0.1)) {
+            for (int s = 0; s < 8; ++s) n.meta[s] = uint8_t(g.irange(0, 255));  // any bytes
+        }
+        if (g.coin(0.05)) n.e[g.irange(0, 2)] = uint8_t(g.irange(0, 255));
+        Ray r;
+        for (int a = 0; a < 3; ++a) {
+            r.dir[a] = random_dir_component(g);
+            if (g.coin(0.05)) r.dir[a] = std::ldexp(g.uni(-1, 1), g.irange(-140, 127));
+            r.org[a] = n.p[a] + std::ldexp(g.uni(-8, 8), k);
+        }
+        r.tmin = g.coin(0.8) ? 0.0f : -INFINITY;
+        r.tmax = g.coin(0.5) ? INFINITY : std::ldexp(g.uni(0, 8), k);
+        if (!ray_is_traceable(r)) continue;
+        const NodeRay nr = make_node_ray(r);
+        const uint32_t scalar = intersect_node_scalar(n, nr, r.tmin, r.tmax);
+        ++tested;
+        differ += scalar != intersect_node(n, nr, r.tmin, r.tmax);
+#if CWBVH_NODE_SSE
+        differ += scalar != intersect_node_sse(n, nr, r.tmin, r.tmax);
+#endif
+    }
+    EXPECT_EQ(differ, 0u);
+    EXPECT_GT(tested, 100000u);
+}
+
 TEST(NodeIntersect, MetaDecodeSetsPaperBits) {
     // A node whose 8 children all contain the origin: every bit must come out.
     CwbvhNode n{};

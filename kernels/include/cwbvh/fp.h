@@ -14,6 +14,14 @@
 
 #include "cwbvh/hostdevice.h"
 
+/// Full unrolling of small constant loops in device code, so that arrays indexed by
+/// the loop variable stay in registers (host compilers decide for themselves).
+#if defined(__CUDA_ARCH__)
+#define CWBVH_UNROLL _Pragma("unroll")
+#else
+#define CWBVH_UNROLL
+#endif
+
 namespace cwbvh {
 
 inline constexpr float kInfinity = __builtin_huge_valf();
@@ -88,7 +96,11 @@ CWBVH_HD CWBVH_INLINE int popcount32(uint32_t x) {
 #if defined(__CUDA_ARCH__)
     return __popc(x);
 #else
-    return __builtin_popcount(x);
+    // Bit trick, not __builtin_popcount: on baseline x86-64 (no -mpopcnt) that is a
+    // call into libgcc.
+    x = x - ((x >> 1) & 0x55555555u);
+    x = (x & 0x33333333u) + ((x >> 2) & 0x33333333u);
+    return int((((x + (x >> 4)) & 0x0F0F0F0Fu) * 0x01010101u) >> 24);
 #endif
 }
 
