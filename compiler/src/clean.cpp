@@ -47,6 +47,10 @@ bool is_degenerate(const Vec3& a, const Vec3& b, const Vec3& c) {
 bool clean_and_append(const RawInput& input, uint32_t input_index, Scene& scene,
                       std::string& error) {
     for (const auto& [kind, n] : input.skipped_primitives) scene.skipped_primitives[kind] += n;
+    if (input.rejected_by_reader > 0) {
+        scene.input_triangles += input.rejected_by_reader;
+        scene.dropped["rejected_by_reader"] += input.rejected_by_reader;
+    }
 
     std::vector<uint32_t> remap;
     for (const RawPrimitive& prim : input.primitives) {

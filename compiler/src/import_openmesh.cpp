@@ -247,11 +247,13 @@ bool import_openmesh(const std::string& path, const ImportOptions& options, RawI
                            " more messages");
 
     const int64_t expected = expected_faces(path, ext, out);
-    if (expected >= 0 && uint64_t(expected) != mesh.n_faces())
+    if (expected >= 0 && uint64_t(expected) != mesh.n_faces()) {
         warnings.push_back("the file declares " + std::to_string(expected) +
                            " faces but OpenMesh read " + std::to_string(mesh.n_faces()) +
-                           " (faces with repeated or invalid vertex indices are dropped by the "
-                           "reader)");
+                           " (faces with repeated, invalid or unparsable vertices are dropped by the "
+                           "reader; counted as dropped 'rejected_by_reader')");
+        if (uint64_t(expected) > mesh.n_faces()) out.rejected_by_reader += uint64_t(expected) - mesh.n_faces();
+    }
 
     RawPrimitive prim;
     prim.vertices.resize(mesh.n_vertices());

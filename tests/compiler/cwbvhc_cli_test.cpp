@@ -93,6 +93,22 @@ TEST(CwbvhcCli, StatsJsonHasTheDocumentedKeysAndMatchesTheFile) {
     EXPECT_TRUE(file->bvh2().empty()) << "BVH2 only with --keep-sbvh";
 }
 
+TEST(CwbvhcCli, FacesTheReaderRejectsAreCountedNotLost) {
+    // OpenMesh drops a face with a repeated vertex index and cannot parse "nan";
+    // the totals must still account for every face the file declares.
+    const auto dir = cwbvh::test::temp_dir("rejected");
+    const auto mesh = dir / "rejected.obj";
+    std::ofstream(mesh) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\nf 1 1 2\n";
+    const auto json_path = (dir / "stats.json").string();
+    const auto r = run_tool("cwbvhc", {mesh.string(), "-o", (dir / "x.cwbvh").string(), "--stats-json", json_path,
+                                       "--quiet"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto j = nlohmann::json::parse(cwbvh::test::slurp(json_path));
+    EXPECT_EQ(j["input_triangles"], 3);
+    EXPECT_EQ(j["dropped_triangles"]["rejected_by_reader"], 1);
+    EXPECT_EQ(j["triangles"], 2);
+}
+
 TEST(CwbvhcCli, OptionalSectionsOnlyWhenAsked) {
     const auto dir = cwbvh::test::temp_dir("optional");
     const auto mesh = dir / "quad.obj";

@@ -52,6 +52,11 @@ struct RawPrimitive {
 struct RawInput {
     std::vector<RawPrimitive> primitives;
     std::map<std::string, uint64_t> skipped_primitives;  ///< "points", "lines", ...
+    /// Faces the file declares but a third-party reader refused before we saw
+    /// them (OpenMesh drops faces with repeated or unparsable vertices). Each
+    /// counts as one input triangle dropped for reason "rejected_by_reader", so
+    /// that the totals stay honest even though the faces never reach us.
+    uint64_t rejected_by_reader = 0;
 };
 
 /// Per-format readers. Each returns false and sets `error` (without the file
