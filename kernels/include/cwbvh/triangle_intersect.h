@@ -31,28 +31,42 @@ struct TriangleHit {
 /// the other two, swapped when dir[kz] < 0 to keep the winding; the shear maps dir
 /// to (0, 0, 1/sz).
 struct WatertightRay {
-    float org[3];
+    float ox, oy, oz;  ///< org[kx], org[ky], org[kz]: permuted once per ray
     int kx, ky, kz;
     float sx, sy, sz;
 };
 
+/// v[k] for k in 0..2. On the device a chain of selects: an indexed read of a
+/// triangle held in registers would force it into local memory. On the host the
+/// triangle is in memory anyway and an indexed load is one instruction.
+CWBVH_HD CWBVH_INLINE float pick3(const float* v, int k) {
+#if defined(__CUDA_ARCH__)
+    return k == 0 ? v[0] : (k == 1 ? v[1] : v[2]);
+#else
+    return v[k];
+#endif
+}
+
 CWBVH_HD CWBVH_INLINE WatertightRay make_watertight_ray(const Ray& r) {
     WatertightRay w;
-    for (int a = 0; a < 3; ++a) w.org[a] = r.org[a];
     const float ax = abs_f(r.dir[0]), ay = abs_f(r.dir[1]), az = abs_f(r.dir[2]);
     w.kz = (ax > ay) ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2);
     w.kx = w.kz == 2 ? 0 : w.kz + 1;
     w.ky = w.kx == 2 ? 0 : w.kx + 1;
-    if (r.dir[w.kz] < 0.0f) {
+    const float dz = pick3(r.dir, w.kz);
+    if (dz < 0.0f) {
         const int tmp = w.kx;
         w.kx = w.ky;
         w.ky = tmp;
     }
     // dir[kz] != 0 for a traceable ray. These roundings are shared by every triangle
     // the ray meets, so they cannot open a crack between neighbours.
-    w.sx = r.dir[w.kx] / r.dir[w.kz];
-    w.sy = r.dir[w.ky] / r.dir[w.kz];
-    w.sz = 1.0f / r.dir[w.kz];
+    w.ox = pick3(r.org, w.kx);
+    w.oy = pick3(r.org, w.ky);
+    w.oz = pick3(r.org, w.kz);
+    w.sx = pick3(r.dir, w.kx) / dz;
+    w.sy = pick3(r.dir, w.ky) / dz;
+    w.sz = 1.0f / dz;
     return w;
 }
 
@@ -69,12 +83,12 @@ CWBVH_HD CWBVH_INLINE bool intersect_triangle_watertight(const WatertightRay& w,
                                                          const float* v1, const float* v2,
                                                          float tmin, float tmax, TriangleHit& out) {
     // Vertices relative to the origin, then sheared.
-    const float a_kx = sub_rn(v0[w.kx], w.org[w.kx]), a_ky = sub_rn(v0[w.ky], w.org[w.ky]);
-    const float a_kz = sub_rn(v0[w.kz], w.org[w.kz]);
-    const float b_kx = sub_rn(v1[w.kx], w.org[w.kx]), b_ky = sub_rn(v1[w.ky], w.org[w.ky]);
-    const float b_kz = sub_rn(v1[w.kz], w.org[w.kz]);
-    const float c_kx = sub_rn(v2[w.kx], w.org[w.kx]), c_ky = sub_rn(v2[w.ky], w.org[w.ky]);
-    const float c_kz = sub_rn(v2[w.kz], w.org[w.kz]);
+    const float a_kx = sub_rn(pick3(v0, w.kx), w.ox), a_ky = sub_rn(pick3(v0, w.ky), w.oy);
+    const float a_kz = sub_rn(pick3(v0, w.kz), w.oz);
+    const float b_kx = sub_rn(pick3(v1, w.kx), w.ox), b_ky = sub_rn(pick3(v1, w.ky), w.oy);
+    const float b_kz = sub_rn(pick3(v1, w.kz), w.oz);
+    const float c_kx = sub_rn(pick3(v2, w.kx), w.ox), c_ky = sub_rn(pick3(v2, w.ky), w.oy);
+    const float c_kz = sub_rn(pick3(v2, w.kz), w.oz);
     const float ax = sub_rn(a_kx, mul_rn(w.sx, a_kz)), ay = sub_rn(a_ky, mul_rn(w.sy, a_kz));
     const float bx = sub_rn(b_kx, mul_rn(w.sx, b_kz)), by = sub_rn(b_ky, mul_rn(w.sy, b_kz));
     const float cx = sub_rn(c_kx, mul_rn(w.sx, c_kz)), cy = sub_rn(c_ky, mul_rn(w.sy, c_kz));
