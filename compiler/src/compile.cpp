@@ -12,6 +12,7 @@
 #include "cwbvh/compiler/emit.h"
 #include "cwbvh/compiler/import.h"
 #include "cwbvh/compiler/model.h"
+#include "cwbvh/compiler/sah_report.h"
 
 namespace cwbvh::compiler {
 namespace {
@@ -78,7 +79,7 @@ bool compile(const CompileOptions& options, CompileStats& stats, std::string& er
 
     CollapseConfig collapse_config;
     collapse_config.kind = options.collapse;
-    stats.sah_binary = sah_cost_binary(binary, collapse_config.cost_node, collapse_config.cost_prim);
+    stats.sah_binary = report_sah_binary(binary);
 
     WideBvh wide;
     if (!timer.run("collapse", [&] { return collapse_wide(binary, collapse_config, wide, error); })) return false;
