@@ -1,0 +1,191 @@
+#include "cwbvh/deep_check.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "cwbvh/node_decode.h"
+
+namespace cwbvh {
+namespace {
+
+struct Box {
+    float lo[3], hi[3];
+};
+
+Box decoded_box(const CwbvhNode& n, int slot) {
+    Box b;
+    for (int a = 0; a < 3; ++a) {
+        b.lo[a] = decode_plane(n.p[a], n.e[a], n.q_lo[a][slot]);
+        b.hi[a] = decode_plane(n.p[a], n.e[a], n.q_hi[a][slot]);
+    }
+    return b;
+}
+
+bool contains(const Box& outer, const Box& inner) {
+    for (int a = 0; a < 3; ++a)
+        if (!(outer.lo[a] <= inner.lo[a] && inner.hi[a] <= outer.hi[a])) return false;
+    return true;
+}
+
+Box triangle_bounds(const TriangleRecord& t) {
+    Box b;
+    for (int a = 0; a < 3; ++a) {
+        b.lo[a] = std::min({t.v0[a], t.v1[a], t.v2[a]});
+        b.hi[a] = std::max({t.v0[a], t.v1[a], t.v2[a]});
+    }
+    return b;
+}
+
+bool overlaps(const Box& x, const Box& y) {
+    for (int a = 0; a < 3; ++a)
+        if (x.hi[a] < y.lo[a] || y.hi[a] < x.lo[a]) return false;
+    return true;
+}
+
+/// Point (double) inside a float box, with a tolerance of 2^-40 of the magnitude:
+/// lattice points are computed in double and may sit a few double ulps off the
+/// triangle's plane, never a float ulp.
+bool contains_point(const Box& b, const double p[3]) {
+    for (int a = 0; a < 3; ++a) {
+        const double tol = std::ldexp(std::max({std::fabs(p[a]), double(std::fabs(b.lo[a])),
+                                                double(std::fabs(b.hi[a]))}), -40);
+        if (!(double(b.lo[a]) - tol <= p[a] && p[a] <= double(b.hi[a]) + tol)) return false;
+    }
+    return true;
+}
+
+std::string box_text(const Box& b) {
+    char s[200];
+    std::snprintf(s, sizeof s, "[%.9g %.9g %.9g]-[%.9g %.9g %.9g]", b.lo[0], b.lo[1], b.lo[2], b.hi[0], b.hi[1],
+                  b.hi[2]);
+    return s;
+}
+
+struct LeafRef {
+    uint32_t prim;
+    uint32_t record;
+    uint32_t node;  ///< the node holding the leaf slot
+    uint8_t slot;
+};
+
+/// (parent node, slot in parent) of every node; the root's parent is itself.
+struct Parent {
+    uint32_t node = 0;
+    uint8_t slot = 0;
+};
+
+/// The decoded boxes from a leaf slot up to the root's child slot: all the
+/// boxes a ray must enter to reach that leaf.
+template <class Pred>
+bool chain_holds(std::span<const CwbvhNode> nodes, const std::vector<Parent>& parent, uint32_t node, int slot,
+                 Pred&& inside) {
+    for (int guard = 0; guard <= 64; ++guard) {
+        if (!inside(decoded_box(nodes[node], slot))) return false;
+        if (node == 0) return true;
+        slot = parent[node].slot;
+        node = parent[node].node;
+    }
+    return false;  // deeper than any valid file (rule 5113)
+}
+
+}  // namespace
+
+Result deep_check(std::span<const CwbvhNode> nodes, std::span<const TriangleRecord> triangles,
+                  uint64_t stored_triangles, DeepCheckStats* stats) {
+    DeepCheckStats local;
+    DeepCheckStats& st = stats ? *stats : local;
+    st = DeepCheckStats{};
+    auto fail_deep = [](const char* id, const std::string& what) {
+        return Result::fail(Status::kCorrupt, 0, std::string("deep check ") + id + ": " + what);
+    };
+
+    // Parent links, every record's leaf slot, and references per stored triangle.
+    std::vector<Parent> parent(nodes.size());
+    std::vector<uint32_t> refs(stored_triangles, 0);
+    std::vector<LeafRef> leaf_refs;
+    leaf_refs.reserve(triangles.size());
+    for (size_t i = 0; i < nodes.size(); ++i) {
+        const CwbvhNode& n = nodes[i];
+        for (int s = 0; s < kWidth; ++s) {
+            const uint8_t meta = n.meta[s];
+            if (meta_is_empty(meta)) continue;
+            if (meta_is_internal(meta)) {
+                const uint32_t c = internal_child_index(n, s);
+                if (c <= i || c >= nodes.size())
+                    return fail_deep("D1", "node " + std::to_string(i) + " child out of order or range");
+                parent[c] = {uint32_t(i), uint8_t(s)};
+                ++st.internal_edges;
+                continue;
+            }
+            const uint32_t first = n.tri_base + uint32_t(meta_leaf_offset(meta));
+            for (int k = 0; k < meta_leaf_count(meta); ++k) {
+                const uint32_t r = first + uint32_t(k);
+                if (r >= triangles.size() || triangles[r].prim >= stored_triangles)
+                    return fail_deep("D4", "node " + std::to_string(i) + " references a record out of range");
+                ++refs[triangles[r].prim];
+                leaf_refs.push_back({triangles[r].prim, r, uint32_t(i), uint8_t(s)});
+            }
+        }
+    }
+    for (uint64_t p = 0; p < stored_triangles; ++p)
+        if (refs[p] == 0) return fail_deep("D4", "stored triangle " + std::to_string(p) + " is in no leaf");
+
+    // D2: unsplit triangles lie inside their leaf box. D3 for the split ones.
+    std::sort(leaf_refs.begin(), leaf_refs.end(),
+              [](const LeafRef& x, const LeafRef& y) { return x.prim != y.prim ? x.prim < y.prim : x.record < y.record; });
+    for (size_t i = 0; i < leaf_refs.size();) {
+        size_t j = i;
+        while (j < leaf_refs.size() && leaf_refs[j].prim == leaf_refs[i].prim) ++j;
+        const TriangleRecord& tri = triangles[leaf_refs[i].record];
+        const Box tb = triangle_bounds(tri);
+        if (j - i == 1) {
+            // D1/D2: the whole triangle inside its leaf box and every ancestor's.
+            ++st.unsplit_triangles;
+            Box failed{};
+            const bool ok = chain_holds(nodes, parent, leaf_refs[i].node, leaf_refs[i].slot, [&](const Box& b) {
+                failed = b;
+                return contains(b, tb);
+            });
+            if (!ok)
+                return fail_deep("D2", "triangle " + std::to_string(tri.prim) + " bounds " + box_text(tb) +
+                                           " are not inside the box " + box_text(failed) +
+                                           " of its leaf or of an ancestor");
+        } else {
+            // D3: every lattice point of a split triangle lies in the leaf box of
+            // some reference and in every ancestor box of that leaf.
+            ++st.split_triangles;
+            for (size_t k = i; k < j; ++k)
+                if (!overlaps(decoded_box(nodes[leaf_refs[k].node], leaf_refs[k].slot), tb))
+                    return fail_deep("D3", "a reference of triangle " + std::to_string(tri.prim) +
+                                               " has a leaf box that misses the triangle");
+            const float* v[3] = {tri.v0, tri.v1, tri.v2};
+            constexpr int kSteps = 8;  // (kSteps+1)(kSteps+2)/2 = 45 lattice points, vertices included
+            for (int a = 0; a <= kSteps; ++a) {
+                for (int b = 0; a + b <= kSteps; ++b) {
+                    const double wa = double(a) / kSteps, wb = double(b) / kSteps, wc = 1.0 - wa - wb;
+                    double p[3];
+                    for (int ax = 0; ax < 3; ++ax)
+                        p[ax] = (a == kSteps) ? double(v[0][ax])
+                                : (b == kSteps) ? double(v[1][ax])
+                                : (a + b == 0) ? double(v[2][ax])
+                                : wa * double(v[0][ax]) + wb * double(v[1][ax]) + wc * double(v[2][ax]);
+                    bool covered = false;
+                    for (size_t k = i; k < j && !covered; ++k)
+                        covered = chain_holds(nodes, parent, leaf_refs[k].node, leaf_refs[k].slot,
+                                              [&](const Box& box) { return contains_point(box, p); });
+                    ++st.samples;
+                    if (!covered)
+                        return fail_deep("D3", "a point of split triangle " + std::to_string(tri.prim) +
+                                                   " is inside none of its " + std::to_string(j - i) +
+                                                   " references' leaf-to-root box chains");
+                }
+            }
+        }
+        i = j;
+    }
+    return Result::success();
+}
+
+}  // namespace cwbvh
