@@ -139,7 +139,7 @@ def plot_memory(d, res):
     fig, axes = plt.subplots(1, 2, figsize=(max(10, 2 * len(scenes) + 3), 4.2))
     _bar_groups(axes[0], scenes, [("CWBVH nodes (80 B)", [r["node_bytes_per_tri"] for r in rows]),
                                    ("BVH2 nodes (64 B)", [r["bvh2_bytes_per_tri"] for r in rows]),
-                                   ("triangle records (48 B, shared)", [r["tris_bytes_per_tri"] for r in rows])],
+                                   ("triangle records (40 B, shared)", [r["tris_bytes_per_tri"] for r in rows])],
                 ylabel="bytes per input triangle")
     axes[0].set_title("Node memory, same SBVH; CWBVH/BVH2: %s" %
                       " ".join("%.2f" % r["node_bytes_ratio_cwbvh_over_bvh2"] for r in rows), fontsize=8)
@@ -249,7 +249,7 @@ def tables(d, res):
                          "%.0f" % c["bytes_per_ray"], "%.1f" % b2["nodes_per_ray"], "%.1f" % b2["triangles_per_ray"],
                          "%.0f" % b2["bytes_per_ray"], "%.2f" % (c["bytes_per_ray"] / b2["bytes_per_ray"]),
                          c["disagreements_cwbvh_vs_bvh2"]])
-    s.append("\n### Traversal traffic per ray (closest hit; CWBVH 80 B/node, BVH2 64 B/node, 48 B/triangle)\n\n")
+    s.append("\n### Traversal traffic per ray (closest hit; CWBVH 80 B/node, BVH2 64 B/node, 40 B/triangle)\n\n")
     s.append(_md(["scene", "rays", "count", "CWBVH nodes", "CWBVH tris", "CWBVH bytes", "BVH2 nodes", "BVH2 tris",
                   "BVH2 bytes", "bytes CWBVH/BVH2", "hit disagreements"], rows))
     ld = res["load"]

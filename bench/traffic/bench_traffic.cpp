@@ -8,7 +8,7 @@
 // the diffuse rays of bounce 1..B (cosine hemisphere at the hit points,
 // Wächter-Binder origin offset). Bytes: a visited node is one full node fetch
 // (CWBVH 80 B, BVH2 64 B: Bvh2Node holds both child boxes), a tested triangle
-// one 48-byte TriangleRecord. This is the data a traversal touches, not DRAM
+// one TriangleRecord (40 bytes). This is the data a traversal touches, not DRAM
 // traffic (no cache model). Prints one JSON object.
 #include <cstdio>
 #include <cstdlib>
@@ -24,7 +24,7 @@ namespace {
     std::fprintf(stderr, "cwbvh_bench_traffic: %s\n", m.c_str());
     std::exit(2);
 }
-constexpr double kCwbvhNodeBytes = 80, kBvh2NodeBytes = 64, kTriBytes = 48;
+constexpr double kCwbvhNodeBytes = 80, kBvh2NodeBytes = 64, kTriBytes = double(sizeof(cwbvh::TriangleRecord));
 
 struct Row {
     std::string rays, mode, tree;

@@ -7,9 +7,11 @@
 #include "cwbvh/compiler/emit.h"
 
 #include <cstring>
+#include <optional>
 #include <span>
 
 #include "cwbvh/compiler/collapse.h"
+#include "cwbvh/source_map.h"
 #include "cwbvh/tree_depth.h"
 #include "cwbvh/writer.h"
 
@@ -105,6 +107,23 @@ bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error) {
         out.source_names.insert(out.source_names.end(), name.begin(), name.end());
         out.source_names.push_back(0);
     }
+    // PMAP: clean.cpp keeps stored triangles in source order within a
+    // primitive, so a run breaks only at a dropped triangle or a new primitive/input.
+    out.source_ranges = make_source_ranges(in.scene->sources);
+    if (in.options->verify) {
+        const std::vector<SourceRef>& sources = in.scene->sources;
+        if (source_range_total(out.source_ranges) != sources.size()) {
+            error = "internal error: PMAP ranges do not cover the stored triangles";
+            return false;
+        }
+        for (size_t i = 0; i < sources.size(); ++i) {
+            const std::optional<SourceRef> r = find_source(out.source_ranges, uint32_t(i));
+            if (!r || std::memcmp(&*r, &sources[i], sizeof(SourceRef)) != 0) {
+                error = "internal error: PMAP range decodes stored triangle " + std::to_string(i) + " wrongly";
+                return false;
+            }
+        }
+    }
     return true;
 }
 
@@ -114,7 +133,7 @@ bool write_scene(const EmitInput& in, const EmitResult& e, std::vector<std::pair
     Writer writer;
     writer.add_array<CwbvhNode>(kSectionNodes, kSectionRequired, e.tree.nodes);
     writer.add_array<TriangleRecord>(kSectionTriangles, kSectionRequired, e.tree.triangles);
-    writer.add_array<SourceRef>(kSectionSourceMap, kSectionRequired, scene.sources);
+    writer.add_array<SourceRange>(kSectionSourceMap, kSectionRequired, e.source_ranges);
     writer.add_array<SceneBounds>(kSectionBounds, kSectionRequired, std::span<const SceneBounds>(&e.bounds, 1));
     writer.add_array<BuildInfo>(kSectionBuildInfo, 0, std::span<const BuildInfo>(&e.build_info, 1));
     writer.add_array<uint8_t>(kSectionSourceNames, 0, e.source_names);

@@ -73,7 +73,7 @@ bool verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene& s
                 if (tri_seen[t]++) return fail(error, "triangle record " + std::to_string(t) + " used twice", i);
                 if (tree.ref_to_tri[ref] != t || rec.prim != wide.leaf_refs[ref])
                     return fail(error, "triangle record " + std::to_string(t) + " is not the leaf's", i);
-                if (rec.prim >= scene.triangle_count() || rec.reserved1 != 0 || rec.reserved2 != 0)
+                if (rec.prim >= scene.triangle_count())
                     return fail(error, "bad triangle record " + std::to_string(t), i);
                 const auto v = scene.triangle(rec.prim);
                 for (int a = 0; a < 3; ++a) {

@@ -143,10 +143,11 @@ std::string describe_json(const FileLayout& l, bool decode_content) {
             o += "{\"v0\": " + vec3(t.v0) + ", \"v1\": " + vec3(t.v1) + ", \"v2\": " + vec3(t.v2) +
                  fmt(", \"prim\": %u}", t.prim);
         });
-        list("source_map", kSectionSourceMap, [&](const SectionEntry& e, uint64_t i) {
-            const auto r = element<SourceRef>(l, e, i);
-            o += fmt("{\"input\": %u, \"mesh\": %u, \"primitive\": %u, \"triangle\": %u}", r.input, r.mesh,
-                     r.primitive, r.triangle);
+        list("source_ranges", kSectionSourceMap, [&](const SectionEntry& e, uint64_t i) {
+            const auto r = element<SourceRange>(l, e, i);
+            o += fmt("{\"first\": %u, \"count\": %u, \"input\": %u, \"mesh\": %u, \"primitive\": %u, "
+                     "\"first_triangle\": %u}",
+                     r.first, r.count, r.input, r.mesh, r.primitive, r.first_triangle);
         });
         list("bvh2", kSectionBvh2, [&](const SectionEntry& e, uint64_t i) {
             const auto n = element<Bvh2Node>(l, e, i);

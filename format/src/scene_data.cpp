@@ -11,7 +11,7 @@ void add_scene_sections(Writer& writer, const SceneData& scene) {
     };
     add(kSectionNodes, sizeof(CwbvhNode), scene.nodes.size(), scene.nodes.data());
     add(kSectionTriangles, sizeof(TriangleRecord), scene.triangles.size(), scene.triangles.data());
-    add(kSectionSourceMap, sizeof(SourceRef), scene.source_map.size(), scene.source_map.data());
+    add(kSectionSourceMap, sizeof(SourceRange), scene.source_ranges.size(), scene.source_ranges.data());
     add(kSectionBounds, sizeof(SceneBounds), 1, &scene.bounds);
     if (scene.build_info) add(kSectionBuildInfo, sizeof(BuildInfo), 1, &*scene.build_info);
     if (!scene.bvh2.empty()) add(kSectionBvh2, sizeof(Bvh2Node), scene.bvh2.size(), scene.bvh2.data());

@@ -5,6 +5,7 @@
 #include <deque>
 
 #include "cwbvh/node_decode.h"
+#include "cwbvh/source_map.h"
 
 namespace cwbvh {
 namespace {
@@ -176,7 +177,10 @@ SceneData make_synthetic_scene(const SyntheticOptions& options) {
         scene.nodes[t.node] = n;
     }
 
-    for (uint32_t i = 0; i < count; ++i) scene.source_map.push_back({0, 0, 0, i});
+    // Primitives of 8 triangles, so PMAP holds several runs.
+    std::vector<SourceRef> refs;
+    for (uint32_t i = 0; i < count; ++i) refs.push_back({0, 0, i / 8, i % 8});
+    scene.source_ranges = make_source_ranges(refs);
     if (count > 0)
         for (int a = 0; a < 3; ++a) {
             scene.bounds.lo[a] = scene_box.lo[a];

@@ -24,6 +24,10 @@ std::string hex_byte(uint8_t b);
 
 uint64_t count_of(const FileLayout& layout, uint32_t type);  ///< 0 if absent
 
+/// Stored triangles = first + count of the last PMAP range (0 if PMAP is
+/// absent or empty); read from the payload whether or not PMAP was selected.
+uint64_t stored_triangle_count(const FileLayout& layout);
+
 Result check_nodes(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count);
 Result check_triangles(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count);
 Result check_source_map(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count);

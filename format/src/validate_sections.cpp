@@ -31,15 +31,22 @@ uint64_t source_name_count(const FileLayout& layout) {
 
 }  // namespace
 
-Result check_triangles(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count) {
+uint64_t stored_triangle_count(const FileLayout& layout) {
     const SectionEntry* pmap = layout.find(kSectionSourceMap);
+    if (pmap == nullptr || pmap->element_count == 0) return 0;
+    const auto last = load<SourceRange>(layout.payload(*pmap), pmap->element_count - 1);
+    return uint64_t(last.first) + last.count;
+}
+
+Result check_triangles(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count) {
+    // PMAP is mandatory (rule 4012), so the stored triangle count is always known.
+    const uint64_t stored = stored_triangle_count(layout);
     for (uint64_t i = 0; i < count; ++i) {
         const auto t = load<TriangleRecord>(payload, i);
-        if (pmap != nullptr && t.prim >= pmap->element_count)
+        if (t.prim >= stored)
             return element_error(rule::kTriPrim, "TRIS", "record", i, "prim " + to_string(t.prim) +
-                                     " is not below PMAP count " + to_string(pmap->element_count));
-        if (t.reserved1 != 0 || t.reserved2 != 0)
-            return element_error(rule::kTriReserved, "TRIS", "record", i, "reserved field is not 0");
+                                     " is not below the stored triangle count " + to_string(stored) +
+                                     " (PMAP total)");
         if (!all_finite(t.v0, 3) || !all_finite(t.v1, 3) || !all_finite(t.v2, 3))
             return element_error(rule::kTriNonFinite, "TRIS", "record", i, "vertex is not finite");
     }
@@ -49,12 +56,21 @@ Result check_triangles(const FileLayout& layout, std::span<const uint8_t> payloa
 Result check_source_map(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count) {
     const SectionEntry* srcn = layout.find(kSectionSourceNames);
     // Without SRCN (or with a broken one, which its own rule reports) inputs are not checked.
-    if (srcn == nullptr || srcn->size == 0 || layout.payload(*srcn).back() != 0) return Result::success();
-    const uint64_t names = source_name_count(layout);
+    const bool check_inputs = srcn != nullptr && srcn->size != 0 && layout.payload(*srcn).back() == 0;
+    const uint64_t names = check_inputs ? source_name_count(layout) : 0;
+    uint64_t next = 0;  // first stored triangle id the next range must start at
     for (uint64_t i = 0; i < count; ++i) {
-        const auto r = load<SourceRef>(payload, i);
-        if (r.input >= names)
-            return element_error(rule::kPmapInput, "PMAP", "entry", i, "input " + to_string(r.input) +
+        const auto r = load<SourceRange>(payload, i);
+        if (r.count == 0) return element_error(rule::kPmapRangeEmpty, "PMAP", "range", i, "count is 0");
+        if (r.first != next)
+            return element_error(rule::kPmapRangeOrder, "PMAP", "range", i, "first " + to_string(r.first) +
+                                     " is not " + to_string(next) + " (ranges must tile the stored triangles in order)");
+        next = uint64_t(r.first) + r.count;
+        if (next > 0x100000000u || uint64_t(r.first_triangle) + r.count > 0x100000000u)
+            return element_error(rule::kPmapRangeLimit, "PMAP", "range", i,
+                                 "first + count or first_triangle + count exceeds 2^32");
+        if (check_inputs && r.input >= names)
+            return element_error(rule::kPmapInput, "PMAP", "range", i, "input " + to_string(r.input) +
                                      " is not below the " + to_string(names) + " names in SRCN");
     }
     return Result::success();
@@ -127,6 +143,9 @@ Result check_vertices(std::span<const uint8_t> payload, uint64_t count) {
 
 Result check_indices(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count) {
     const uint64_t verts = count_of(layout, kSectionVertices);
+    if (const uint64_t stored = stored_triangle_count(layout); count != stored)
+        return fail(rule::kIndexCount, "section INDX: " + to_string(count) +
+                                           " triangles but PMAP covers " + to_string(stored) + " stored triangles");
     for (uint64_t i = 0; i < count; ++i) {
         uint32_t idx[3];
         std::memcpy(idx, payload.data() + i * sizeof idx, sizeof idx);

@@ -123,13 +123,9 @@ Result check_counts(const FileLayout& layout) {
     }
     if (const SectionEntry* e = count(kSectionVertices); e && e->element_count > 0x100000000u)
         return bad(kSectionVertices, "more than 2^32 vertices");
-    if (const SectionEntry* e = count(kSectionIndices)) {
-        if (count(kSectionVertices) == nullptr)
-            return fail(rule::kMissingSection, "section INDX: present without VERT");
-        if (e->element_count != count(kSectionSourceMap)->element_count)
-            return bad(kSectionIndices, to_string(e->element_count) + " triangles but PMAP has " +
-                                            to_string(count(kSectionSourceMap)->element_count));
-    }
+    // INDX's count is checked against the PMAP total by its content rule (5802).
+    if (count(kSectionIndices) != nullptr && count(kSectionVertices) == nullptr)
+        return fail(rule::kMissingSection, "section INDX: present without VERT");
     return Result::success();
 }
 

@@ -2,6 +2,7 @@
 #include "cwbvh/cwbvh.h"
 
 #include <new>
+#include <optional>
 #include <string>
 
 #include "cwbvh/loader.h"
@@ -9,6 +10,7 @@
 static_assert(CWBVH_SECTION_NODES == cwbvh::kMaskNodes && CWBVH_SECTION_ALL == cwbvh::kMaskAll);
 static_assert(int(CWBVH_ERROR_CHECKSUM) == int(cwbvh::Status::kChecksumMismatch));
 static_assert(int(CWBVH_ERROR_INVALID_ARGUMENT) == int(cwbvh::Status::kInvalidArgument));
+static_assert(sizeof(cwbvh_source_ref) == sizeof(cwbvh::SourceRef));
 
 struct cwbvh_file {
     cwbvh::File file;
@@ -73,10 +75,17 @@ const char* cwbvh_status_string(cwbvh_status status) { return cwbvh::status_name
 
 const void* cwbvh_nodes(const cwbvh_file* f, uint64_t* n) { return section_ptr<void>(f, cwbvh::kSectionNodes, n, 80); }
 const void* cwbvh_triangles(const cwbvh_file* f, uint64_t* n) {
-    return section_ptr<void>(f, cwbvh::kSectionTriangles, n, 48);
+    return section_ptr<void>(f, cwbvh::kSectionTriangles, n, sizeof(cwbvh::TriangleRecord));
 }
-const void* cwbvh_source_map(const cwbvh_file* f, uint64_t* n) {
-    return section_ptr<void>(f, cwbvh::kSectionSourceMap, n, 16);
+const void* cwbvh_source_ranges(const cwbvh_file* f, uint64_t* n) {
+    return section_ptr<void>(f, cwbvh::kSectionSourceMap, n, sizeof(cwbvh::SourceRange));
+}
+cwbvh_status cwbvh_source_of(const cwbvh_file* f, uint32_t prim, cwbvh_source_ref* out) {
+    if (f == nullptr || out == nullptr) return CWBVH_ERROR_INVALID_ARGUMENT;
+    const std::optional<cwbvh::SourceRef> r = f->file.source_of(prim);
+    if (!r) return CWBVH_ERROR_INVALID_ARGUMENT;
+    *out = cwbvh_source_ref{r->input, r->mesh, r->primitive, r->triangle};
+    return CWBVH_OK;
 }
 const float* cwbvh_bounds(const cwbvh_file* f) { return section_ptr<float>(f, cwbvh::kSectionBounds, nullptr, 24); }
 const void* cwbvh_build_info(const cwbvh_file* f) { return section_ptr<void>(f, cwbvh::kSectionBuildInfo, nullptr, 256); }

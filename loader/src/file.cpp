@@ -8,6 +8,8 @@
 #include <cerrno>
 #include <cstring>
 
+#include "cwbvh/source_map.h"
+
 namespace cwbvh {
 namespace {
 
@@ -64,6 +66,10 @@ std::span<const uint8_t> File::section(uint32_t type) const {
     const SectionEntry* e = layout_.find(type);
     return e != nullptr ? layout_.payload(*e) : std::span<const uint8_t>{};
 }
+
+std::optional<SourceRef> File::source_of(uint32_t prim) const { return find_source(source_ranges(), prim); }
+
+uint64_t File::stored_triangle_count() const { return source_range_total(source_ranges()); }
 
 File::File(File&& other) noexcept { *this = std::move(other); }
 

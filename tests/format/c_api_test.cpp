@@ -19,8 +19,16 @@ TEST(CApi, OpensAndReadsSections) {
     EXPECT_EQ(n, scene.nodes.size());
     EXPECT_NE(cwbvh_triangles(f, &n), nullptr);
     EXPECT_EQ(n, scene.triangles.size());
-    EXPECT_NE(cwbvh_source_map(f, &n), nullptr);
-    EXPECT_EQ(n, scene.source_map.size());
+    EXPECT_NE(cwbvh_source_ranges(f, &n), nullptr);
+    EXPECT_EQ(n, scene.source_ranges.size());
+    cwbvh_source_ref ref{};
+    ASSERT_EQ(cwbvh_source_of(f, 9, &ref), CWBVH_OK);  // synthetic: primitives of 8 triangles
+    EXPECT_EQ(ref.input, 0u);
+    EXPECT_EQ(ref.primitive, 1u);
+    EXPECT_EQ(ref.triangle, 1u);
+    EXPECT_EQ(cwbvh_source_of(f, uint32_t(scene.triangles.size()), &ref), CWBVH_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(cwbvh_source_of(f, 0, nullptr), CWBVH_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(cwbvh_source_of(nullptr, 0, &ref), CWBVH_ERROR_INVALID_ARGUMENT);
     ASSERT_NE(cwbvh_bounds(f), nullptr);
     EXPECT_EQ(cwbvh_bounds(f)[3], scene.bounds.hi[0]);
     EXPECT_NE(cwbvh_build_info(f), nullptr);

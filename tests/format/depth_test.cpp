@@ -34,8 +34,8 @@ SceneData wide_chain(uint32_t levels) {
         t.v2[1] = 1.0f;
         t.prim = i;
         s.triangles.push_back(t);
-        s.source_map.push_back({0, 0, 0, i});
     }
+    s.source_ranges.push_back(SourceRange{0, uint32_t(s.triangles.size()), 0, 0, 0, 0});
     s.bounds = {{0, 0, 0}, {1, 1, 0}};
     return s;
 }

@@ -53,7 +53,12 @@ TEST(Spec, LayoutTablesMatchStructs) {
     CWBVH_ROW(CwbvhNode, child_base, "`child_base`");
     CWBVH_ROW(CwbvhNode, meta, "`meta`");
     CWBVH_ROW(TriangleRecord, prim, "`prim`");
-    CWBVH_ROW(TriangleRecord, reserved2, "`reserved2`");
+    CWBVH_ROW(TriangleRecord, v1, "`v1`");
+    CWBVH_ROW(TriangleRecord, v2, "`v2`");
+    CWBVH_ROW(SourceRange, first, "`first`");
+    CWBVH_ROW(SourceRange, count, "`count`");
+    CWBVH_ROW(SourceRange, primitive, "`primitive`");
+    CWBVH_ROW(SourceRange, first_triangle, "`first_triangle`");
     CWBVH_ROW(BuildInfo, wide_nodes, "`wide_nodes`");
     CWBVH_ROW(BuildInfo, sah_binary, "`sah_binary`");
     CWBVH_ROW(BuildInfo, reserved, "`reserved`");

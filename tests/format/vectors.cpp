@@ -18,8 +18,8 @@ SceneData single_triangle() {
     root.q_hi[0][0] = 128;
     root.q_hi[1][0] = 128;
     s.nodes.push_back(root);
-    s.triangles.push_back(TriangleRecord{{0, 0, 0}, 0, {1, 0, 0}, 0, {0, 1, 0}, 0});
-    s.source_map.push_back({0, 0, 0, 0});
+    s.triangles.push_back(TriangleRecord{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, 0});
+    s.source_ranges.push_back(SourceRange{0, 1, 0, 0, 0, 0});
     s.bounds = SceneBounds{{0, 0, 0}, {1, 1, 0}};
     s.bvh2.push_back(Bvh2Node{0, 1, 0, 1, 0, 1, 0, 1, 0, 0, 0, 0, {~0, ~0}, {0, 0}});
     s.vertices = {0, 0, 0, 1, 0, 0, 0, 1, 0};

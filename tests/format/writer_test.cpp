@@ -33,7 +33,7 @@ TEST(Writer, RoundTripsEverySection) {
     EXPECT_EQ(l.table.size(), 9u);
     EXPECT_TRUE(same_bytes(section_as<CwbvhNode>(l, kSectionNodes), scene.nodes));
     EXPECT_TRUE(same_bytes(section_as<TriangleRecord>(l, kSectionTriangles), scene.triangles));
-    EXPECT_TRUE(same_bytes(section_as<SourceRef>(l, kSectionSourceMap), scene.source_map));
+    EXPECT_TRUE(same_bytes(section_as<SourceRange>(l, kSectionSourceMap), scene.source_ranges));
     EXPECT_TRUE(same_bytes(section_as<SceneBounds>(l, kSectionBounds), std::vector<SceneBounds>{scene.bounds}));
     EXPECT_TRUE(same_bytes(section_as<BuildInfo>(l, kSectionBuildInfo), std::vector<BuildInfo>{*scene.build_info}));
     EXPECT_TRUE(same_bytes(section_as<Bvh2Node>(l, kSectionBvh2), scene.bvh2));

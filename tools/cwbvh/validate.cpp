@@ -40,13 +40,8 @@ int run_validate(int argc, char** argv) {
             std::printf("%s: valid\n", path);
             continue;
         }
-        // Stored triangle count: BILD's figure when present, else one past the largest TRIS.prim.
-        uint64_t stored = 0;
-        if (const BuildInfo* info = file->build_info()) {
-            stored = info->triangles;
-        } else {
-            for (const TriangleRecord& t : file->triangles()) stored = std::max<uint64_t>(stored, uint64_t(t.prim) + 1);
-        }
+        // Stored triangle count: the PMAP total (validated: rule 5201 puts every TRIS.prim below it).
+        const uint64_t stored = file->stored_triangle_count();
         DeepCheckStats st;
         const Result r = deep_check(file->nodes(), file->triangles(), stored, &st);
         if (r.ok()) {

@@ -63,7 +63,7 @@ constexpr uint32_t fourcc(char a, char b, char c, char d) {
 enum SectionType : uint32_t {
     kSectionNodes = fourcc('N', 'O', 'D', 'E'),      ///< CwbvhNode[], required
     kSectionTriangles = fourcc('T', 'R', 'I', 'S'),  ///< TriangleRecord[] in leaf order, required
-    kSectionSourceMap = fourcc('P', 'M', 'A', 'P'),  ///< SourceRef[] per stored triangle, required
+    kSectionSourceMap = fourcc('P', 'M', 'A', 'P'),  ///< SourceRange[] runs of stored triangles, required
     kSectionBounds = fourcc('B', 'N', 'D', 'S'),     ///< SceneBounds[1], required
     kSectionBuildInfo = fourcc('B', 'I', 'L', 'D'),  ///< BuildInfo[1], optional
     kSectionBvh2 = fourcc('B', 'V', 'H', '2'),       ///< Bvh2Node[] (binary SBVH), optional
@@ -135,28 +135,48 @@ static_assert(offsetof(CwbvhNode, q_hi) == 56);
 // TRIS: one record per triangle reference, in leaf order
 // ---------------------------------------------------------------------------
 
-/// Raw vertices (so a watertight test can run on them) plus the stored
-/// triangle id. Three 16-byte loads on the GPU.
+/// Raw vertices (so a watertight test can run on them exactly) plus the
+/// stored triangle id; no padding (40 bytes instead of 48 keeps a compiled
+/// file under 55 bytes per input triangle). Records are 8-byte aligned
+/// (sections are 64-byte aligned, 40 = 5 * 8), so the GPU loads one with
+/// five 8-byte (float2) loads instead of three 16-byte ones.
 struct TriangleRecord {
     float v0[3];
-    uint32_t prim;       ///< stored triangle id: index into PMAP (and INDX)
     float v1[3];
-    uint32_t reserved1;  ///< must be 0
     float v2[3];
-    uint32_t reserved2;  ///< must be 0
+    uint32_t prim;  ///< stored triangle id: < stored triangle count (PMAP total)
 };
-static_assert(sizeof(TriangleRecord) == 48);
+static_assert(sizeof(TriangleRecord) == 40);
 static_assert(offsetof(TriangleRecord, v0) == 0);
-static_assert(offsetof(TriangleRecord, prim) == 12);
-static_assert(offsetof(TriangleRecord, v1) == 16);
-static_assert(offsetof(TriangleRecord, reserved1) == 28);
-static_assert(offsetof(TriangleRecord, v2) == 32);
-static_assert(offsetof(TriangleRecord, reserved2) == 44);
+static_assert(offsetof(TriangleRecord, v1) == 12);
+static_assert(offsetof(TriangleRecord, v2) == 24);
+static_assert(offsetof(TriangleRecord, prim) == 36);
 
 // ---------------------------------------------------------------------------
-// PMAP: stored triangle -> source primitive
+// PMAP: stored triangle -> source primitive, as runs
 // ---------------------------------------------------------------------------
 
+/// A run of stored triangles [first, first + count) that come from
+/// consecutive triangles first_triangle, first_triangle + 1, ... of one
+/// source primitive. Ranges are sorted and tile [0, stored triangle count).
+struct SourceRange {
+    uint32_t first;           ///< first stored triangle id of the run
+    uint32_t count;           ///< stored triangles in the run, >= 1
+    uint32_t input;           ///< index of the input file (order on the command line; SRCN)
+    uint32_t mesh;            ///< glTF: mesh index; other formats: 0
+    uint32_t primitive;       ///< glTF: primitive index in the mesh; other formats: 0
+    uint32_t first_triangle;  ///< triangle index (in that primitive) of stored triangle `first`
+};
+static_assert(sizeof(SourceRange) == 24);
+static_assert(offsetof(SourceRange, first) == 0);
+static_assert(offsetof(SourceRange, count) == 4);
+static_assert(offsetof(SourceRange, input) == 8);
+static_assert(offsetof(SourceRange, mesh) == 12);
+static_assert(offsetof(SourceRange, primitive) == 16);
+static_assert(offsetof(SourceRange, first_triangle) == 20);
+
+/// The decoded source of one stored triangle (not stored as such: PMAP holds
+/// SourceRange runs; see cwbvh/source_map.h).
 struct SourceRef {
     uint32_t input;      ///< index of the input file (order on the command line; SRCN)
     uint32_t mesh;       ///< glTF: mesh index; other formats: 0
@@ -211,7 +231,7 @@ struct BuildInfo {
     uint64_t dropped_nonfinite;   ///< NaN/Inf coordinate
     uint64_t dropped_degenerate;  ///< zero area
     uint64_t skipped_primitives;  ///< points/lines primitives skipped (glTF)
-    uint64_t triangles;           ///< stored triangles (PMAP count)
+    uint64_t triangles;           ///< stored triangles (PMAP total)
     uint64_t references;          ///< triangle references after spatial splits (TRIS count)
     uint64_t binary_nodes;        ///< nodes of the binary SBVH (internal + leaves)
     uint64_t wide_nodes;          ///< NODE count

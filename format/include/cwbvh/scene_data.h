@@ -15,7 +15,7 @@ namespace cwbvh {
 struct SceneData {
     std::vector<CwbvhNode> nodes;            ///< NODE
     std::vector<TriangleRecord> triangles;   ///< TRIS
-    std::vector<SourceRef> source_map;       ///< PMAP
+    std::vector<SourceRange> source_ranges;  ///< PMAP (make_source_ranges builds it)
     SceneBounds bounds{};                    ///< BNDS
     std::optional<BuildInfo> build_info;     ///< BILD (absent if nullopt)
     std::vector<Bvh2Node> bvh2;              ///< BVH2 (absent if empty)

@@ -36,7 +36,7 @@ struct SectionInfo {
 inline constexpr SectionInfo kKnownSections[] = {
     {kSectionNodes, kMaskNodes, sizeof(CwbvhNode), true, "compressed wide BVH nodes"},
     {kSectionTriangles, kMaskTriangles, sizeof(TriangleRecord), true, "triangle records in leaf order"},
-    {kSectionSourceMap, kMaskSourceMap, sizeof(SourceRef), true, "stored triangle -> source primitive"},
+    {kSectionSourceMap, kMaskSourceMap, sizeof(SourceRange), true, "stored triangle runs -> source primitive"},
     {kSectionBounds, kMaskBounds, sizeof(SceneBounds), true, "scene bounds"},
     {kSectionBuildInfo, kMaskBuildInfo, sizeof(BuildInfo), false, "build parameters and statistics"},
     {kSectionBvh2, kMaskBvh2, sizeof(Bvh2Node), false, "binary BVH (Aila-Laine layout)"},

@@ -76,10 +76,13 @@ inline constexpr uint32_t kNodeNonFinite = 5112;
 inline constexpr uint32_t kNodeDepth = 5113;
 // 52xx: TRIS
 inline constexpr uint32_t kTriPrim = 5201;
-inline constexpr uint32_t kTriReserved = 5202;
+// 5202 (TRIS reserved fields) was removed with the fields: the 40-byte record has none.
 inline constexpr uint32_t kTriNonFinite = 5203;
 // 53xx: PMAP
 inline constexpr uint32_t kPmapInput = 5301;
+inline constexpr uint32_t kPmapRangeEmpty = 5302;
+inline constexpr uint32_t kPmapRangeOrder = 5303;
+inline constexpr uint32_t kPmapRangeLimit = 5304;
 // 54xx: BNDS
 inline constexpr uint32_t kBoundsInvalid = 5401;
 // 55xx: BILD
@@ -95,6 +98,7 @@ inline constexpr uint32_t kBvh2Depth = 5606;
 inline constexpr uint32_t kVertNonFinite = 5701;
 // 58xx: INDX
 inline constexpr uint32_t kIndexRange = 5801;
+inline constexpr uint32_t kIndexCount = 5802;
 // 59xx: SRCN
 inline constexpr uint32_t kNamesTerminator = 5901;
 /// Every rule ID above (a test checks this list against the spec's table).
@@ -105,9 +109,9 @@ inline constexpr uint32_t kAll[] = {
     kSectionOutsideFile, kSectionOverlapsHeader, kSectionOverlap, kDuplicateSection, kUnknownRequiredSection,
     kElementSize, kElementCount, kMissingSection, kNonZeroPadding, kSectionChecksum, kNodeExponent, kNodeMeta,
     kNodeImask, kNodeChildRange, kNodeChildOrder, kNodeParents, kNodeLeafRange, kNodeLeafLayout,
-    kNodeTriangleUse, kNodePlaneOrder, kNodeEmptySlot, kNodeNonFinite, kNodeDepth, kTriPrim, kTriReserved, kTriNonFinite,
-    kPmapInput, kBoundsInvalid, kBuildReserved, kBvh2Child, kBvh2Leaf, kBvh2Reserved, kBvh2NonFinite,
-    kBvh2Parents, kBvh2Depth, kVertNonFinite, kIndexRange, kNamesTerminator,
+    kNodeTriangleUse, kNodePlaneOrder, kNodeEmptySlot, kNodeNonFinite, kNodeDepth, kTriPrim, kTriNonFinite,
+    kPmapInput, kPmapRangeEmpty, kPmapRangeOrder, kPmapRangeLimit, kBoundsInvalid, kBuildReserved, kBvh2Child, kBvh2Leaf, kBvh2Reserved, kBvh2NonFinite,
+    kBvh2Parents, kBvh2Depth, kVertNonFinite, kIndexRange, kIndexCount, kNamesTerminator,
 };
 }  // namespace rule
 

@@ -53,6 +53,14 @@ typedef struct cwbvh_open_options {
 
 typedef struct cwbvh_file cwbvh_file;
 
+/* The decoded source of one stored triangle (what PMAP's ranges say about it). */
+typedef struct cwbvh_source_ref {
+    uint32_t input;     /* input file index (SRCN order) */
+    uint32_t mesh;      /* glTF mesh index; other formats 0 */
+    uint32_t primitive; /* glTF primitive index in the mesh; other formats 0 */
+    uint32_t triangle;  /* triangle index in that primitive, after triangulation */
+} cwbvh_source_ref;
+
 /* Fills the defaults (checksums on, all sections). */
 void cwbvh_open_options_init(cwbvh_open_options* options);
 
@@ -72,14 +80,19 @@ const char* cwbvh_status_string(cwbvh_status status);
 /* Section accessors: element pointer and count; NULL/0 if the section is
  * absent, not selected, or the open failed. Pointers live as long as the handle. */
 const void* cwbvh_nodes(const cwbvh_file* file, uint64_t* count);        /* 80-byte nodes */
-const void* cwbvh_triangles(const cwbvh_file* file, uint64_t* count);    /* 48-byte records */
-const void* cwbvh_source_map(const cwbvh_file* file, uint64_t* count);   /* 16-byte refs */
+const void* cwbvh_triangles(const cwbvh_file* file, uint64_t* count);    /* 40-byte records */
+const void* cwbvh_source_ranges(const cwbvh_file* file, uint64_t* count); /* 24-byte ranges */
 const float* cwbvh_bounds(const cwbvh_file* file);                       /* lo[3], hi[3] */
 const void* cwbvh_build_info(const cwbvh_file* file);                    /* 256 bytes */
 const void* cwbvh_bvh2(const cwbvh_file* file, uint64_t* count);         /* 64-byte nodes */
 const float* cwbvh_vertices(const cwbvh_file* file, uint64_t* count);    /* count vertices x 3 */
 const uint32_t* cwbvh_indices(const cwbvh_file* file, uint64_t* count);  /* count triangles x 3 */
 const char* cwbvh_source_names(const cwbvh_file* file, uint64_t* size);  /* NUL-separated, size bytes */
+/* Where stored triangle `prim` (a triangle record's / hit's prim) comes from:
+ * binary search over the PMAP ranges. CWBVH_OK and *out filled, or
+ * CWBVH_ERROR_INVALID_ARGUMENT (NULL file/out, failed open, PMAP not selected,
+ * prim not below the stored triangle count). */
+cwbvh_status cwbvh_source_of(const cwbvh_file* file, uint32_t prim, cwbvh_source_ref* out);
 /* Any section by FourCC (e.g. 0x45444F4E for "NODE"): bytes and size. */
 const void* cwbvh_section(const cwbvh_file* file, uint32_t type, uint64_t* size);
 

@@ -65,14 +65,21 @@ public:
 
     std::span<const CwbvhNode> nodes() const { return view<CwbvhNode>(kSectionNodes); }
     std::span<const TriangleRecord> triangles() const { return view<TriangleRecord>(kSectionTriangles); }
-    std::span<const SourceRef> source_map() const { return view<SourceRef>(kSectionSourceMap); }
+    /// PMAP: sorted runs of stored triangles (spec 3.3); source_of() decodes one.
+    std::span<const SourceRange> source_ranges() const { return view<SourceRange>(kSectionSourceMap); }
+    /// Where stored triangle `prim` (TriangleRecord::prim, a hit's prim) comes
+    /// from: binary search over source_ranges(). nullopt if PMAP was not
+    /// selected or no range holds `prim`.
+    std::optional<SourceRef> source_of(uint32_t prim) const;
+    /// Stored triangles = the PMAP total (0 if PMAP was not selected).
+    uint64_t stored_triangle_count() const;
     const SceneBounds* bounds() const { return one<SceneBounds>(kSectionBounds); }
     const BuildInfo* build_info() const { return one<BuildInfo>(kSectionBuildInfo); }
     std::span<const Bvh2Node> bvh2() const { return view<Bvh2Node>(kSectionBvh2); }
     /// VERT as float[3] per vertex; INDX as uint32_t[3] per stored triangle.
     std::span<const float> vertices() const { return view<float>(kSectionVertices); }
     std::span<const uint32_t> indices() const { return view<uint32_t>(kSectionIndices); }
-    /// SRCN split at the NULs (a name per input file, in PMAP input order).
+    /// SRCN: names each followed by NUL (a name per input file, in PMAP input order).
     std::span<const char> source_names() const { return view<char>(kSectionSourceNames); }
 
     /// Payload of a section that was selected and validated (empty if absent).

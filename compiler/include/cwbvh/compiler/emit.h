@@ -29,6 +29,7 @@ struct EmitResult {
     BuildInfo build_info{};
     SceneBounds bounds{};
     std::vector<uint8_t> source_names;  ///< SRCN payload
+    std::vector<SourceRange> source_ranges;  ///< PMAP payload: Scene::sources as runs
     uint64_t wide_nodes = 0;
     uint32_t wide_depth = 0;   ///< levels of NODE (root = 1)
     uint32_t bvh2_depth = 0;   ///< levels of BVH2 incl. leaves (only with keep_sbvh)
@@ -38,7 +39,7 @@ struct EmitResult {
 };
 
 /// Quantizes and lays out the tree (NODE, TRIS, optional BVH2), verifies it
-/// when options->verify, and fills the BILD/BNDS/SRCN payloads.
+/// when options->verify, and fills the BILD/BNDS/SRCN/PMAP payloads.
 [[nodiscard]] bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error);
 
 /// Writes the file atomically. `bytes` gets (section name, payload bytes) in file order.
