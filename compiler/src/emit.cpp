@@ -11,6 +11,7 @@
 #include <span>
 
 #include "cwbvh/compiler/collapse.h"
+#include "cwbvh/compiler/sah_report.h"
 #include "cwbvh/source_map.h"
 #include "cwbvh/tree_depth.h"
 #include "cwbvh/writer.h"
@@ -100,7 +101,10 @@ bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error) {
     out.wide_nodes = out.tree.nodes.size();
     out.avg_children = out.tree.avg_children;
     out.max_leaf_triangles = out.tree.max_leaf_triangles;
-    out.sah_wide = out.tree.sah_wide;
+    Aabb root_box;
+    for (const auto& tri : in.scene->indices)
+        for (uint32_t v : tri) root_box.grow(in.scene->vertices[v]);
+    out.sah_wide = report_sah_wide(out.tree.nodes, root_box);
     out.bounds = scene_bounds(*in.scene);
     out.build_info = build_info(in, out);
     for (const auto& name : in.scene->input_names) {
