@@ -14,7 +14,7 @@ SCENE="${1:-/usr/share/glmark2/models/bunny.obj}"
 NAME="$(basename "${SCENE%.*}")"
 mkdir -p out
 build/bin/cwbvhc "$SCENE" -o "out/$NAME.cwbvh" --stats-json "out/$NAME.stats.json"
-build/bin/cwbvh validate "out/$NAME.cwbvh"
+build/bin/cwbvh validate --deep "out/$NAME.cwbvh"
 build/bin/cwbvh info "out/$NAME.cwbvh"
 build/bin/cwbvh render "out/$NAME.cwbvh" -o "out/$NAME.png"
 build/bin/cwbvh render "out/$NAME.cwbvh" -o "out/$NAME-heatmap.png" --heatmap
