@@ -2,7 +2,9 @@
 // triangle inside the slab and the reference box lies inside the float box.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <random>
 #include <vector>
 
@@ -179,6 +181,58 @@ TEST(Clip, DiagonalIsTighterThanBox) {
     ASSERT_FALSE(l.empty());
     EXPECT_LT(l.hi[1], 0.26f);
     EXPECT_GE(l.hi[1], 0.2525f);  // (0.25, 0.2525) is on the edge to (1, 1.01)
+}
+
+TEST(Clip, NextFloatMatchesNextafter) {
+    // The outward rounding's bit arithmetic against libm, on the special
+    // values (+-0, subnormals, FLT_MAX, +-inf, NaN) and random bit patterns.
+    auto same = [](float x, float y) {
+        return (std::isnan(x) && std::isnan(y)) || std::memcmp(&x, &y, sizeof x) == 0;
+    };
+    std::vector<float> v = {0.0f, -0.0f, 1.0f, -1.0f, kInf, -kInf, std::numeric_limits<float>::quiet_NaN(),
+                            std::numeric_limits<float>::denorm_min(), -std::numeric_limits<float>::denorm_min(),
+                            std::numeric_limits<float>::min(), -std::numeric_limits<float>::min(),
+                            std::numeric_limits<float>::max(), -std::numeric_limits<float>::max()};
+    std::mt19937 rng(7);
+    for (int i = 0; i < 200000; ++i) {
+        const uint32_t bits = rng();
+        float f;
+        std::memcpy(&f, &bits, sizeof f);
+        v.push_back(f);
+    }
+    for (const float f : v) {
+        ASSERT_TRUE(same(next_float_up(f), std::nextafter(f, kInf))) << f;
+        ASSERT_TRUE(same(next_float_down(f), std::nextafter(f, -kInf))) << f;
+    }
+}
+
+TEST(Clip, ChopEqualsClipPerSlab) {
+    // chop_triangle shares plane cuts between neighbouring slabs; it must be
+    // bitwise equal to clipping each slab on its own.
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f), f(0.0f, 1.0f);
+    for (int i = 0; i < 5000; ++i) {
+        Tri t;
+        for (auto& p : t)
+            for (float& c : p) c = u(rng);
+        if (i % 4 == 0)
+            for (auto& p : t) p[i % 3] = t[0][i % 3];  // flat
+        const int axis = int(rng() % 3);
+        const Aabb tb = tri_box(t);
+        const int slabs = 1 + int(rng() % 12);
+        std::vector<float> planes(slabs + 1);
+        for (int s = 0; s <= slabs; ++s) {
+            planes[s] = (rng() % 5 == 0) ? t[rng() % 3][axis]
+                                         : tb.lo[axis] + (tb.hi[axis] - tb.lo[axis]) * f(rng);
+        }
+        std::sort(planes.begin(), planes.end());
+        std::vector<Aabb> out(slabs);
+        chop_triangle(t, axis, planes.data(), slabs, tb, out.data());
+        for (int s = 0; s < slabs; ++s) {
+            const Aabb one = clip_triangle(t, axis, planes[s], planes[s + 1], tb);
+            ASSERT_EQ(std::memcmp(&one, &out[s], sizeof(Aabb)), 0) << i << " " << s;
+        }
+    }
 }
 
 }  // namespace
