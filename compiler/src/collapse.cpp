@@ -117,6 +117,22 @@ WideChild make_wide_leaf(const BinaryBvh& binary, uint32_t node, WideBvh& wide) 
     return child;
 }
 
+bool add_internal_child(const BinaryBvh& binary, uint32_t binary_node, uint32_t parent, int slot, WideBvh& out,
+                        uint32_t& child, std::string& error) {
+    if (out.nodes.size() >= size_t(kInvalidIndex)) {
+        error = "collapse: too many wide nodes";
+        return false;
+    }
+    child = uint32_t(out.nodes.size());
+    out.nodes.emplace_back();
+    out.nodes[child].box = binary.nodes[binary_node].box;
+    WideChild& s = out.nodes[parent].slots[size_t(slot)];
+    s.kind = WideChild::kInternal;
+    s.box = binary.nodes[binary_node].box;
+    s.node = child;
+    return true;
+}
+
 }  // namespace detail
 
 bool collapse_wide(const BinaryBvh& binary, const CollapseConfig& config, WideBvh& out, std::string& error) {

@@ -55,17 +55,8 @@ bool collapse_greedy(const BinaryBvh& binary, const CollapseConfig& config,
                 out.nodes[w.wide].slots[c] = make_wide_leaf(binary, m, out);
                 continue;
             }
-            if (out.nodes.size() >= size_t(kInvalidIndex)) {
-                error = "collapse: too many wide nodes";
-                return false;
-            }
-            const uint32_t child = uint32_t(out.nodes.size());
-            out.nodes.emplace_back();
-            out.nodes[child].box = binary.nodes[m].box;
-            WideChild& slot = out.nodes[w.wide].slots[c];
-            slot.kind = WideChild::kInternal;
-            slot.box = binary.nodes[m].box;
-            slot.node = child;
+            uint32_t child = 0;
+            if (!add_internal_child(binary, m, w.wide, c, out, child, error)) return false;
             work.push_back({m, child});
         }
     }

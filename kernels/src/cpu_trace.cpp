@@ -83,27 +83,12 @@ CpuTraceStats trace_all(const NodeT* nodes, size_t node_count, const TriangleRec
                 for (size_t b = size_t(t) * kBlock; b < ray_count; b += size_t(threads) * kBlock) {
                     const CpuTraceStats s =
                         dispatch<kBvh2>(nodes, nc, tris, tc, rays, hits, b, std::min(ray_count, b + kBlock), o);
-                    CpuTraceStats& p = part[t];
-                    p.rays += s.rays;
-                    p.hits += s.hits;
-                    p.invalid_rays += s.invalid_rays;
-                    p.stack_overflows += s.stack_overflows;
-                    p.bad_indices += s.bad_indices;
-                    p.nodes_visited += s.nodes_visited;
-                    p.triangles_tested += s.triangles_tested;
+                    part[t] += s;
                 }
             });
         }
         for (auto& th : pool) th.join();
-        for (const auto& p : part) {
-            total.rays += p.rays;
-            total.hits += p.hits;
-            total.invalid_rays += p.invalid_rays;
-            total.stack_overflows += p.stack_overflows;
-            total.bad_indices += p.bad_indices;
-            total.nodes_visited += p.nodes_visited;
-            total.triangles_tested += p.triangles_tested;
-        }
+        for (const auto& p : part) total += p;
     }
     total.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return total;

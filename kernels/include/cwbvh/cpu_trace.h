@@ -30,6 +30,18 @@ struct CpuTraceStats {
     uint64_t nodes_visited = 0;
     uint64_t triangles_tested = 0;
     double seconds = 0.0;          ///< wall time of the trace
+
+    /// Adds the counters of another part of the same trace (not the seconds).
+    CpuTraceStats& operator+=(const CpuTraceStats& o) {
+        rays += o.rays;
+        hits += o.hits;
+        invalid_rays += o.invalid_rays;
+        stack_overflows += o.stack_overflows;
+        bad_indices += o.bad_indices;
+        nodes_visited += o.nodes_visited;
+        triangles_tested += o.triangles_tested;
+        return *this;
+    }
 };
 
 /// Trace rays[0..ray_count) against a CWBVH (nodes[0] is the root); hits must hold

@@ -47,6 +47,12 @@ namespace detail {
 /// duplicates removed) to wide.leaf_refs and fills binary_leaf_ref.
 WideChild make_wide_leaf(const BinaryBvh& binary, uint32_t node, WideBvh& wide);
 
+/// Appends a wide node for binary node `binary_node` and makes it the internal
+/// child in slot `slot` of wide node `parent`; `child` gets its index.
+/// False (error set) when the wide node count would overflow 32 bits.
+[[nodiscard]] bool add_internal_child(const BinaryBvh& binary, uint32_t binary_node, uint32_t parent, int slot,
+                                      WideBvh& out, uint32_t& child, std::string& error);
+
 /// Number of distinct triangles among the binary leaves under `node`
 /// (which must hold at most `limit` references; the answer is then <= limit).
 uint32_t distinct_leaf_triangles(const BinaryBvh& binary, uint32_t node);
