@@ -45,6 +45,17 @@ constexpr size_t kParallelBinRefs = 32768;
 /// Spatial splits are not tried below this depth bound (guards against
 /// pathological recursion; the reference budget also bounds them).
 constexpr int kMaxSpatialDepth = 64;
+/// Spatial-split pre-check (see spatial_split): an axis is binned with all
+/// its bins only when binning the chopped triangles into kSpatialGateBins
+/// coarse bins gives some plane a cost below (1 + kSpatialGateSlack) * the
+/// object split's cost. Measured on bunny, dragon_res2, sponza (sah_binary vs
+/// no pre-check): 4 bins, slack 0.1: +0.0002 / -0.0005 / -0.003 %, build_sbvh
+/// instructions -60% (bunny); 4 bins, slack 0.02: +0.05 / +0.21 / +0.60 %.
+/// A pre-check on the references' clipped boxes instead (no chopping) is
+/// cheaper but blind to diagonal triangles: no spatial split at all on the
+/// sliver test scene.
+constexpr int kSpatialGateBins = 4;
+constexpr double kSpatialGateSlack = 0.1;
 /// Upper bound of SbvhConfig::bins.
 constexpr int kMaxBins = 256;
 /// A spatial split that leaves one side with all of the parent's references
@@ -317,7 +328,7 @@ public:
         if (budget > 0 && depth < kMaxSpatialDepth && root_area_ > 0.0 && !coincident) {
             const double overlap = intersect(object.left, object.right).half_area();
             if (overlap > double(config_.split_alpha) * root_area_) {
-                const Split spatial = spatial_split(refs, bounds.box);
+                const Split spatial = spatial_split(refs, bounds.box, object.cost);
                 if (spatial.cost < object.cost &&
                     spatial_partition(refs, spatial, object.cost, budget,
                                       chops < kMaxNonShrinkingSpatial, left, right)) {
@@ -380,7 +391,16 @@ private:
         }
     }
 
-    Split spatial_split(const std::vector<Ref>& refs, const Aabb& box) {
+    /// Best spatial split (Stich et al. 2009, section 4.3), or none.
+    ///
+    /// Pre-check per axis: chopping triangles is ~90% of the spatial-split
+    /// binning, and at most nodes no plane beats the object split (bunny:
+    /// 63k nodes try, 87 spatial splits are made). The axis is first binned
+    /// into kSpatialGateBins coarse bins (a reference then spans 1-2 bins, so
+    /// few chops); only where some coarse plane comes within
+    /// kSpatialGateSlack of the object split's cost is it binned again with
+    /// the full bin count. Deterministic: a function of the node's references.
+    Split spatial_split(const std::vector<Ref>& refs, const Aabb& box, double object_cost) {
         Split best;
         const size_t n = refs.size();
         // Small nodes get fewer bins (2n, at least 4): the binning cost is
@@ -389,36 +409,46 @@ private:
         const int nb = int(std::min<size_t>(size_t(config_.bins), std::max<size_t>(4, 2 * n)));
         for (int a = 0; a < 3; ++a) {
             if (!(box.hi[a] > box.lo[a])) continue;
-            const std::vector<float> planes = bin_planes(box.lo[a], box.hi[a], nb);
-            auto body = [&](const tbb::blocked_range<size_t>& r, SpatialBins bins) {
-                for (size_t i = r.begin(); i != r.end(); ++i) bin_reference(refs[i], a, planes, bins);
-                return bins;
-            };
-            const SpatialBins bins = n < kParallelBinRefs
-                ? body(tbb::blocked_range<size_t>(0, n), SpatialBins(nb))
-                : tbb::parallel_reduce(tbb::blocked_range<size_t>(0, n, 4096), SpatialBins(nb), body,
-                                       [](SpatialBins x, const SpatialBins& y) { x.join(y); return x; });
-            std::vector<Aabb> rbox(nb);
-            std::vector<uint64_t> rcount(nb, 0);
-            Aabb acc;
-            uint64_t cnt = 0;
-            for (int b = nb - 1; b >= 1; --b) {
-                merge(acc, bins.box[b]);
-                cnt += bins.exit[b];
-                rbox[b] = acc;
-                rcount[b] = cnt;
-            }
-            Aabb left;
-            uint64_t lcount = 0;
-            for (int b = 1; b < nb; ++b) {  // plane[b] separates bins b-1 | b
-                merge(left, bins.box[b - 1]);
-                lcount += bins.enter[b - 1];
-                if (lcount == 0 || rcount[b] == 0) continue;
-                if (!(planes[b] > planes[0] && planes[b] < planes[nb])) continue;
-                const double cost = left.half_area() * double(lcount) + rbox[b].half_area() * double(rcount[b]);
-                if (cost < best.cost) {
-                    best = Split{cost, a, Split::kSpatial, size_t(b), left, rbox[b], lcount, rcount[b], planes[b]};
+            for (const bool full : {false, true}) {  // coarse pre-check, then all bins
+                const int nbb = full ? nb : std::min(nb, kSpatialGateBins);
+                if (!full && nbb == nb) continue;  // few bins anyway: no pre-check
+                const std::vector<float> planes = bin_planes(box.lo[a], box.hi[a], nbb);
+                auto body = [&](const tbb::blocked_range<size_t>& r, SpatialBins bins) {
+                    for (size_t i = r.begin(); i != r.end(); ++i) {
+                        bin_reference(refs[i], a, planes, bins);
+                    }
+                    return bins;
+                };
+                const SpatialBins bins = n < kParallelBinRefs
+                    ? body(tbb::blocked_range<size_t>(0, n), SpatialBins(nbb))
+                    : tbb::parallel_reduce(tbb::blocked_range<size_t>(0, n, 4096), SpatialBins(nbb), body,
+                                           [](SpatialBins x, const SpatialBins& y) { x.join(y); return x; });
+                std::vector<Aabb> rbox(nbb);
+                std::vector<uint64_t> rcount(nbb, 0);
+                Aabb acc;
+                uint64_t cnt = 0;
+                for (int b = nbb - 1; b >= 1; --b) {
+                    merge(acc, bins.box[b]);
+                    cnt += bins.exit[b];
+                    rbox[b] = acc;
+                    rcount[b] = cnt;
                 }
+                Aabb left;
+                uint64_t lcount = 0;
+                double gate_cost = std::numeric_limits<double>::infinity();
+                for (int b = 1; b < nbb; ++b) {  // plane[b] separates bins b-1 | b
+                    merge(left, bins.box[b - 1]);
+                    lcount += bins.enter[b - 1];
+                    if (lcount == 0 || rcount[b] == 0) continue;
+                    if (!(planes[b] > planes[0] && planes[b] < planes[nbb])) continue;
+                    const double cost = left.half_area() * double(lcount) + rbox[b].half_area() * double(rcount[b]);
+                    if (!full) {
+                        gate_cost = std::min(gate_cost, cost);
+                    } else if (cost < best.cost) {
+                        best = Split{cost, a, Split::kSpatial, size_t(b), left, rbox[b], lcount, rcount[b], planes[b]};
+                    }
+                }
+                if (!full && !(gate_cost < (1.0 + kSpatialGateSlack) * object_cost)) break;
             }
         }
         return best;
