@@ -280,18 +280,32 @@ std::vector<float> bin_planes(float lo, float hi, int bins) {
     return p;
 }
 
-/// Bin of a lower bound: plane[b] <= x < plane[b+1] (clamped to the bins).
+/// First guess of the bin of x (any value in 0..bins-1); bin_of_lo/hi then
+/// step to the exact answer, which is defined by the planes alone.
+inline int bin_guess(const std::vector<float>& p, float x) {
+    const int bins = int(p.size()) - 1;
+    const double g = (double(x) - p[0]) * double(bins) / (double(p[bins]) - p[0]);
+    if (!(g > 0.0)) return 0;  // also NaN (zero-width range)
+    return g >= double(bins - 1) ? bins - 1 : int(g);
+}
+/// Bin of a lower bound: plane[b] <= x < plane[b+1] (clamped to the bins),
+/// i.e. the number of inner planes plane[1..bins-1] that are <= x.
 int bin_of_lo(const std::vector<float>& p, float x) {
     const int bins = int(p.size()) - 1;
-    const auto it = std::upper_bound(p.begin() + 1, p.end() - 1, x);
-    return std::clamp(int(it - p.begin()) - 1, 0, bins - 1);
+    int b = bin_guess(p, x);
+    while (b > 0 && p[b] > x) --b;
+    while (b < bins - 1 && p[b + 1] <= x) ++b;
+    return b;
 }
 /// Bin of an upper bound: plane[b] < x <= plane[b+1], so a reference that only
-/// touches a plane from the left is not counted in the bin right of it.
+/// touches a plane from the left is not counted in the bin right of it; the
+/// number of inner planes that are < x.
 int bin_of_hi(const std::vector<float>& p, float x) {
     const int bins = int(p.size()) - 1;
-    const auto it = std::lower_bound(p.begin() + 1, p.end() - 1, x);
-    return std::clamp(int(it - p.begin()) - 1, 0, bins - 1);
+    int b = bin_guess(p, x);
+    while (b > 0 && p[b] >= x) --b;
+    while (b < bins - 1 && p[b + 1] < x) ++b;
+    return b;
 }
 
 class Builder {
