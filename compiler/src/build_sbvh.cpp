@@ -153,12 +153,17 @@ struct Split {
 /// Full SAH sweep over references sorted by centroid along each axis. Ties in
 /// cost go to the position nearest the middle, which makes the split of
 /// identical references a median split (no degenerate 1 : n-1 chains).
-Split sweep_object_split(const std::vector<Ref>& refs) {
+Split sweep_object_split(const std::vector<Ref>& refs, std::vector<Ref>& best_sorted) {
     const size_t n = refs.size();
     Split best;
-    std::vector<Ref> sorted(refs);
-    std::vector<double> right_area(n);
-    std::vector<Aabb> right_box(n);
+    // Scratch reused across nodes (nothing in here waits on TBB, so no other
+    // task can run on this thread while it is in use).
+    static thread_local std::vector<Ref> sorted;
+    static thread_local std::vector<double> right_area;
+    static thread_local std::vector<Aabb> right_box;
+    sorted.assign(refs.begin(), refs.end());
+    right_area.resize(n);
+    right_box.resize(n);
     for (int a = 0; a < 3; ++a) {
         std::sort(sorted.begin(), sorted.end(), RefLess{a});
         Aabb acc;
@@ -186,6 +191,9 @@ Split sweep_object_split(const std::vector<Ref>& refs) {
                 best.nr = n - k;
             }
         }
+        // Keep the order of the best axis for the partition (RefLess is a
+        // strict total order: the same array a fresh sort would give).
+        if (best.axis == a) best_sorted.assign(sorted.begin(), sorted.end());
     }
     return best;
 }
@@ -327,8 +335,9 @@ public:
         // 1. Best object split: full sweep for small nodes or when the
         //    centroids do not spread (identical references), bins otherwise.
         Split object;
+        std::vector<Ref> sorted;  // sweep: the references in the best axis' order
         if (n > kSweepMaxRefs) object = binned_object_split(refs, bounds.centroids);
-        if (object.kind == Split::kNone) object = sweep_object_split(refs);
+        if (object.kind == Split::kNone) object = sweep_object_split(refs, sorted);
 
         // 2. Spatial split, only where the object split's children overlap
         //    by more than alpha * A(root) (Stich et al. 2009, section 4.5) and
@@ -353,7 +362,7 @@ public:
             }
         }
         if (!done) {
-            object_partition(refs, object, left, right);
+            object_partition(refs, sorted, object, left, right);
             object_splits_.fetch_add(1, std::memory_order_relaxed);
         }
 
@@ -384,11 +393,9 @@ public:
     uint64_t object_splits() const { return object_splits_.load(); }
 
 private:
-    void object_partition(const std::vector<Ref>& refs, const Split& s, std::vector<Ref>& left,
-                          std::vector<Ref>& right) {
+    void object_partition(const std::vector<Ref>& refs, const std::vector<Ref>& sorted, const Split& s,
+                          std::vector<Ref>& left, std::vector<Ref>& right) {
         if (s.kind == Split::kSweep) {
-            std::vector<Ref> sorted(refs);
-            std::sort(sorted.begin(), sorted.end(), RefLess{s.axis});
             left.assign(sorted.begin(), sorted.begin() + ptrdiff_t(s.index));
             right.assign(sorted.begin() + ptrdiff_t(s.index), sorted.end());
             return;
