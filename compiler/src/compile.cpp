@@ -79,6 +79,7 @@ bool compile(const CompileOptions& options, CompileStats& stats, std::string& er
 
     CollapseConfig collapse_config;
     collapse_config.kind = options.collapse;
+    collapse_config.cost_prim = options.collapse_cost_prim;
     stats.sah_binary = report_sah_binary(binary);
 
     WideBvh wide;

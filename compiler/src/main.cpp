@@ -26,6 +26,7 @@ constexpr const char* kUsage =
     "  --builder sbvh|embree  binary builder (default sbvh)\n"
     "  --collapse optimal|greedy  binary->8-wide collapse (default optimal: Ylitie et al. 2017 DP)\n"
     "  --split-alpha A        SBVH spatial-split overlap threshold (default 1e-5)\n"
+    "  --collapse-cost-prim C triangle cost of the collapse DP, node cost 1 (default 0.3)\n"
     "  --keep-sbvh            also store the binary SBVH (BVH2 section, for the baseline kernel)\n"
     "  --keep-mesh            also store the source mesh (VERT/INDX sections)\n"
     "  --stats-json PATH      write build statistics as JSON\n"
@@ -91,6 +92,9 @@ int main(int argc, char** argv) {
         } else if (arg == "--split-alpha") {
             if (!value(v) || !parse_float(v, options.split_alpha))
                 return usage_error("--split-alpha needs a number in [0, 1]");
+        } else if (arg == "--collapse-cost-prim") {
+            if (!value(v) || !parse_float(v, options.collapse_cost_prim) || options.collapse_cost_prim <= 0.0f)
+                return usage_error("--collapse-cost-prim needs a number in (0, 1]");
         } else if (arg == "--keep-sbvh") {
             options.keep_sbvh = true;
         } else if (arg == "--keep-mesh") {
