@@ -20,7 +20,7 @@ if [[ "${CWBVH_SKIP_SANITIZERS:-0}" != "1" ]]; then
         -DCWBVH_CUDA=OFF >/dev/null
   cmake --build build-asan -j"$JOBS"
   ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-  LSAN_OPTIONS=suppressions="$ROOT/tests/lsan.supp" \
+  LSAN_OPTIONS=suppressions="$ROOT/tests/lsan.supp":print_suppressions=0 \
     ctest --test-dir build-asan --output-on-failure -j"$JOBS" -LE slow
 fi
 echo "== all tests passed"
