@@ -12,8 +12,16 @@
 // leaves (references of one triangle inside a leaf are stored once). A binary
 // leaf has C(n, i) = C_leaf(n). The root is forced internal (the traversal
 // starts with an internal node) and the tree is rebuilt by backtracking the
-// stored decisions from the root. O(n * 7 * 7) time, 72 bytes per binary node.
+// stored decisions from the root. O(n * 7 * 7) time.
+//
+// Memory: the decisions (9 bytes per binary node) are kept for the
+// backtracking; the costs C(n, .) are only needed until the parent has used
+// them. For a tree in depth-first preorder (what both builders write), the
+// reverse sweep finishes a subtree right before its parent needs it, so the
+// pending costs form a stack of depth O(tree depth). Any other valid order
+// falls back to one cost array per node (56 more bytes per node).
 #include <limits>
+#include <vector>
 
 #include "cwbvh/compiler/collapse.h"
 
@@ -24,46 +32,84 @@ namespace {
 
 constexpr int kMaxRoots = kWidth - 1;  // a child subtree of a wide node gets <= 7 roots
 
-struct NodeDp {
-    double cost[kMaxRoots];    ///< cost[i-1] = C(n, i)
+struct Decision {
     uint8_t split[kMaxRoots];  ///< split[i-1]: 0 = one root (n itself), k = k roots to the left child
     uint8_t internal_split;    ///< C_internal: roots given to the left child (right gets 8 - k)
     bool as_leaf;              ///< C(n, 1) is realised by a wide leaf
 };
 
-}  // namespace
+struct Costs {
+    double c[kMaxRoots];  ///< c[i-1] = C(n, i)
+};
 
-bool collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
-                      const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error) {
+/// Pending costs as a stack (preorder trees): put() pushes, take() pops and
+/// checks that the top belongs to the node asked for.
+class CostStack {
+public:
+    void put(uint32_t node, const Costs& c) { stack_.push_back({node, c}); }
+    bool take(uint32_t node, Costs& out) {
+        if (stack_.empty() || stack_.back().node != node) return false;
+        out = stack_.back().costs;
+        stack_.pop_back();
+        return true;
+    }
+
+private:
+    struct Entry {
+        uint32_t node;
+        Costs costs;
+    };
+    std::vector<Entry> stack_;
+};
+
+/// Pending costs in one array (any order with children after parents).
+class CostArray {
+public:
+    explicit CostArray(size_t n) : costs_(n) {}
+    void put(uint32_t node, const Costs& c) { costs_[node] = c; }
+    bool take(uint32_t node, Costs& out) {
+        out = costs_[node];
+        return true;
+    }
+
+private:
+    std::vector<Costs> costs_;
+};
+
+/// The DP sweep with a given cost store; false if the store cannot serve the
+/// tree's order (CostStack on a tree that is not in preorder).
+template <class Store>
+bool run_dp(const BinaryBvh& binary, const CollapseConfig& config, const std::vector<uint32_t>& ref_count,
+            Store& store, std::vector<Decision>& dec) {
     const size_t n = binary.nodes.size();
     const double c_node = config.cost_node, c_prim = config.cost_prim;
     const double inf = std::numeric_limits<double>::infinity();
-    std::vector<NodeDp> dp(n);
-
     // Children have larger indices than parents (checked): a reverse sweep is
     // an iterative post-order, with no recursion depth limit.
     for (size_t idx = n; idx-- > 0;) {
         const BinaryNode& b = binary.nodes[idx];
-        NodeDp& d = dp[idx];
+        Decision& d = dec[idx];
+        Costs out;
         const double area = b.box.half_area();
         const double leaf_cost = ref_count[idx] <= uint32_t(config.max_leaf)
                                      ? c_prim * distinct_leaf_triangles(binary, uint32_t(idx)) * area
                                      : inf;
         if (b.is_leaf()) {
             for (int i = 0; i < kMaxRoots; ++i) {
-                d.cost[i] = leaf_cost;
+                out.c[i] = leaf_cost;
                 d.split[i] = 0;
             }
             d.as_leaf = true;
             d.internal_split = 0;
+            store.put(uint32_t(idx), out);
             continue;
         }
-        const NodeDp& l = dp[b.child[0]];
-        const NodeDp& r = dp[b.child[1]];
+        Costs l, r;  // in a reverse preorder sweep the left subtree finished last
+        if (!store.take(b.child[0], l) || !store.take(b.child[1], r)) return false;
         double best_children = inf;
         int best_k = 1;
         for (int k = 1; k <= kMaxRoots; ++k) {  // left gets k roots, right 8 - k (both >= 1)
-            const double c = l.cost[k - 1] + r.cost[kWidth - k - 1];
+            const double c = l.c[k - 1] + r.c[kWidth - k - 1];
             if (c < best_children) {
                 best_children = c;
                 best_k = k;
@@ -73,21 +119,35 @@ bool collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
         d.internal_split = uint8_t(best_k);
         // Ties go to the leaf: same SAH, one node fewer.
         d.as_leaf = leaf_cost <= internal_cost;
-        d.cost[0] = d.as_leaf ? leaf_cost : internal_cost;
+        out.c[0] = d.as_leaf ? leaf_cost : internal_cost;
         d.split[0] = 0;
         for (int i = 2; i <= kMaxRoots; ++i) {
-            double best = d.cost[0];
+            double best = out.c[0];
             int split = 0;
             for (int k = 1; k < i; ++k) {
-                const double c = l.cost[k - 1] + r.cost[i - k - 1];
+                const double c = l.c[k - 1] + r.c[i - k - 1];
                 if (c < best) {
                     best = c;
                     split = k;
                 }
             }
-            d.cost[i - 1] = best;
+            out.c[i - 1] = best;
             d.split[i - 1] = uint8_t(split);
         }
+        store.put(uint32_t(idx), out);
+    }
+    return true;
+}
+
+}  // namespace
+
+bool collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
+                      const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error) {
+    std::vector<Decision> dp(binary.nodes.size());
+    CostStack stack;
+    if (!run_dp(binary, config, ref_count, stack, dp)) {
+        CostArray array(binary.nodes.size());
+        run_dp(binary, config, ref_count, array, dp);
     }
 
     // Backtracking: create wide nodes top-down. Each wide node gets the roots
