@@ -390,6 +390,12 @@ public:
     }
 
     uint64_t spatial_splits() const { return spatial_splits_.load(); }
+    /// Nodes made so far, over all threads (sizes the flattened array exactly).
+    size_t node_count() const {
+        size_t n = 0;
+        for (const auto& d : nodes_) n += d.size();
+        return n;
+    }
     uint64_t object_splits() const { return object_splits_.load(); }
 
 private:
@@ -573,8 +579,9 @@ private:
 };
 
 /// Canonical depth-first numbering (left subtree first), root = node 0.
-void flatten(const TmpNode* root, BinaryBvh& out) {
+void flatten(const TmpNode* root, size_t node_count, BinaryBvh& out) {
     out.nodes.clear();
+    out.nodes.reserve(node_count);  // no reallocation peak (both copies alive) on big scenes
     struct Item { const TmpNode* node; uint32_t parent; int side; };
     std::vector<Item> stack{{root, kInvalidIndex, 0}};
     while (!stack.empty()) {
@@ -627,7 +634,7 @@ bool build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out, st
         }
         Builder builder(scene, config);
         const TmpNode* root = builder.build(refs, extra, 0, 0);
-        flatten(root, out);
+        flatten(root, builder.node_count(), out);
         out.spatial_splits = builder.spatial_splits();
         out.object_splits = builder.object_splits();
     };
