@@ -34,6 +34,7 @@ public:
         const bool ok = body();
         const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         stats_.seconds.emplace_back(name, seconds);
+        stats_.peak_rss_after.emplace_back(name, peak_rss_bytes());
         if (cb_ && ok) cb_(name, true, seconds);
         return ok;
     }

@@ -44,6 +44,8 @@ struct CompileStats {
     std::vector<std::pair<std::string, double>> seconds;     ///< phase -> seconds, run order
     uint64_t file_bytes = 0;
     uint64_t peak_rss_bytes = 0;
+    /// Peak RSS of the process so far, sampled at the end of each phase (shows which phase peaks).
+    std::vector<std::pair<std::string, uint64_t>> peak_rss_after;
     std::vector<std::string> warnings;
 };
 
