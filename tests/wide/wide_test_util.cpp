@@ -1,5 +1,7 @@
 #include "wide/wide_test_util.h"
 
+#include "build/test_mesh.h"
+
 #include <algorithm>
 #include <fstream>
 #include <limits>
@@ -96,34 +98,10 @@ BinaryBvh build_binary(const Scene& scene, SplitMode mode, uint32_t seed) {
 }
 
 bool read_obj(const std::string& path, Scene& scene) {
-    std::ifstream in(path);
-    if (!in) return false;
-    scene = Scene{};
-    std::string line;
-    while (std::getline(in, line)) {
-        std::istringstream ls(line);
-        std::string tag;
-        ls >> tag;
-        if (tag == "v") {
-            compiler::Vec3 v{};
-            ls >> v[0] >> v[1] >> v[2];
-            scene.vertices.push_back(v);
-        } else if (tag == "f") {
-            std::vector<uint32_t> f;
-            std::string tok;
-            while (ls >> tok) {
-                const long i = std::stol(tok.substr(0, tok.find('/')));
-                f.push_back(uint32_t(i < 0 ? long(scene.vertices.size()) + i : i - 1));
-            }
-            for (size_t k = 2; k < f.size(); ++k) {
-                scene.indices.push_back({f[0], f[k - 1], f[k]});
-                scene.sources.push_back({0, 0, 0, uint32_t(scene.sources.size())});
-            }
-        }
-    }
+    // One test OBJ reader for the whole test tree (tests/build/test_mesh.h).
+    const bool ok = compiler::test::read_obj(path, scene);
     scene.input_names = {path};
-    scene.input_triangles = scene.indices.size();
-    return true;
+    return ok;
 }
 
 namespace {
