@@ -3,17 +3,8 @@
 #include <fstream>
 #include <iterator>
 
-#if defined(__GNUC__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wshadow"
-#pragma GCC diagnostic ignored "-Wpedantic"
-#pragma GCC diagnostic ignored "-Wunused-parameter"
-#endif
 #include <draco/compression/decode.h>
 #include <draco/core/decoder_buffer.h>
-#if defined(__GNUC__)
-#pragma GCC diagnostic pop
-#endif
 
 #include "cwbvh/compiler/import.h"
 

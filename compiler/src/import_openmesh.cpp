@@ -18,17 +18,8 @@
 #include <fstream>
 #include <sstream>
 
-#if defined(__GNUC__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wshadow"
-#pragma GCC diagnostic ignored "-Wpedantic"
-#pragma GCC diagnostic ignored "-Wunused-parameter"
-#endif
 #include <OpenMesh/Core/IO/MeshIO.hh>
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
-#if defined(__GNUC__)
-#pragma GCC diagnostic pop
-#endif
 
 #include "cwbvh/compiler/import.h"
 
