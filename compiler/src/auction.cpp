@@ -7,6 +7,9 @@
 #include <cmath>
 #include <cstdlib>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 namespace cwbvh::compiler {
 
 void auction_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::array<int, 8>& object_of) {
@@ -61,7 +64,10 @@ void auction_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::a
             object_of[i] = best;
         }
         if (eps == 1) break;
-        eps = eps / 4 > 1 ? eps / 4 : 1;
+        // Scaling factor 8 (Bertsekas suggests 4-10): ~11 phases over the
+        // 2^34 benefit range instead of ~17 with 4; the slots phase of the
+        // dragon took 0.29 s with 4.
+        eps = eps / 8 > 1 ? eps / 8 : 1;
     }
 }
 
@@ -98,13 +104,17 @@ void assign_min_cost(const std::array<std::array<double, 8>, 8>& cost, std::arra
 }
 
 void assign_slots(WideBvh& wide) {
-    for (WideNode& node : wide.nodes) {
-        std::array<int, 8> slot_of{};
-        assign_min_cost(slot_cost_table(node), slot_of);
-        std::array<WideChild, 8> slots;
-        for (int i = 0; i < kWidth; ++i) slots[slot_of[i]] = node.slots[i];
-        node.slots = slots;
-    }
+    // Nodes are independent: the result does not depend on the partitioning.
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, wide.nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t k = r.begin(); k != r.end(); ++k) {
+            WideNode& node = wide.nodes[k];
+            std::array<int, 8> slot_of{};
+            assign_min_cost(slot_cost_table(node), slot_of);
+            std::array<WideChild, 8> slots;
+            for (int i = 0; i < kWidth; ++i) slots[slot_of[i]] = node.slots[i];
+            node.slots = slots;
+        }
+    });
 }
 
 }  // namespace cwbvh::compiler

@@ -9,19 +9,27 @@
 //  - sorts use a strict total order on references (ties are identical refs);
 //  - the reference budget is handed down the tree, never shared through an
 //    atomic counter;
-//  - nodes are renumbered at the end into canonical depth-first order.
+//  - subtrees below kTaskRefs references are built by one task each, straight
+//    into a block in canonical depth-first order; the blocks and the few
+//    nodes above them are concatenated in that order at the end.
+//
+// Spatial-split binning estimates plane costs from plain-float chopped boxes
+// (chop_triangle_estimate); the references' boxes of a split that is made
+// always come from the conservative clip_triangle.
+#include <sys/mman.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <deque>
+#include <memory>
+#include <new>
 #include <limits>
 #include <numeric>
 #include <utility>
 #include <vector>
 
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_reduce.h>
 #include <tbb/blocked_range.h>
 #include <tbb/task_arena.h>
@@ -34,8 +42,10 @@ namespace {
 
 /// Nodes of up to this many references get a full SAH sweep over references
 /// sorted by centroid (all n-1 candidate positions per axis); larger nodes use
-/// kObjectBins centroid bins. Chosen by measurement (see build_sbvh report).
-constexpr size_t kSweepMaxRefs = 2048;
+/// kObjectBins centroid bins. Measured (dragon 871k, bunny, sponza; single
+/// thread): 2048 -> 64 cut the SBVH from 4.15 s to 3.28 s on the dragon with
+/// binary SAH 49.057 -> 49.054 (bunny +0.07 %, sponza -0.25 %).
+constexpr size_t kSweepMaxRefs = 64;
 constexpr int kObjectBins = 64;
 /// Subtrees with at least this many references are built as separate tasks.
 constexpr size_t kTaskRefs = 2048;
@@ -67,15 +77,53 @@ constexpr int kMaxBins = 256;
 /// +16% references and a WORSE final SAH (30.31 vs 30.10) than allowing none.
 constexpr int kMaxNonShrinkingSpatial = 0;
 
+/// Allocator whose allocations of at least kMinBytes bytes are each their own
+/// anonymous mapping, so that freeing them returns the memory to the OS at
+/// once. Through malloc, the builder's large temporaries (reference lists,
+/// subtree blocks) are made and freed on TBB worker threads, stay resident
+/// in those threads' malloc arenas (glibc also raises its mmap threshold
+/// after each large free) and, measured on the dragon, added ~75 MB to the
+/// peak. Smaller allocations (most nodes' lists) stay with malloc.
+template <class T, size_t kMinBytes>
+struct MappedAllocator {
+    using value_type = T;
+    template <class U>
+    struct rebind { using other = MappedAllocator<U, kMinBytes>; };
+    MappedAllocator() = default;
+    template <class U>
+    MappedAllocator(const MappedAllocator<U, kMinBytes>&) {}
+    T* allocate(size_t n) {
+        if (n * sizeof(T) < kMinBytes) return std::allocator<T>().allocate(n);
+        void* p = mmap(nullptr, n * sizeof(T), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+        if (p == MAP_FAILED) throw std::bad_alloc();
+        return static_cast<T*>(p);
+    }
+    void deallocate(T* p, size_t n) {
+        if (n * sizeof(T) < kMinBytes) std::allocator<T>().deallocate(p, n);
+        else munmap(p, n * sizeof(T));
+    }
+    template <class U>
+    bool operator==(const MappedAllocator<U, kMinBytes>&) const { return true; }
+};
+
 struct Ref {
     Aabb box;
     uint32_t tri;
 };
+/// Reference list of one node; lists of >= 64 KiB are mapped (see MappedAllocator).
+using RefList = std::vector<Ref, MappedAllocator<Ref, 65536>>;
 
-struct TmpNode {
-    Aabb box;
-    TmpNode* child[2] = {nullptr, nullptr};
-    uint32_t prim = kInvalidIndex;
+/// Nodes of one subtree in canonical depth-first order, child indices local.
+/// Blocks are freed one by one while the final array grows: always mapped.
+using Block = std::vector<BinaryNode, MappedAllocator<BinaryNode, 0>>;
+
+/// The finished tree before flattening: the top (nodes of >= kTaskRefs
+/// references, split in parallel) as linked pieces, each smaller subtree as
+/// one block.
+struct Piece {
+    BinaryNode node;                  ///< top node (child indices unset); unused for a block
+    std::unique_ptr<Piece> child[2];
+    Block block;                      ///< non-empty: this piece is a whole subtree
 };
 
 inline float centroid(const Ref& r, int a) { return r.box.lo[a] * 0.5f + r.box.hi[a] * 0.5f; }
@@ -121,7 +169,7 @@ struct Bounds {
     void join(const Bounds& o) { merge(box, o.box); merge(centroids, o.centroids); }
 };
 
-Bounds compute_bounds(const std::vector<Ref>& refs) {
+Bounds compute_bounds(const RefList& refs) {
     auto body = [&](const tbb::blocked_range<size_t>& r, Bounds b) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
             merge(b.box, refs[i].box);
@@ -153,12 +201,12 @@ struct Split {
 /// Full SAH sweep over references sorted by centroid along each axis. Ties in
 /// cost go to the position nearest the middle, which makes the split of
 /// identical references a median split (no degenerate 1 : n-1 chains).
-Split sweep_object_split(const std::vector<Ref>& refs, std::vector<Ref>& best_sorted) {
+Split sweep_object_split(const RefList& refs, RefList& best_sorted) {
     const size_t n = refs.size();
     Split best;
     // Scratch reused across nodes (nothing in here waits on TBB, so no other
     // task can run on this thread while it is in use).
-    static thread_local std::vector<Ref> sorted;
+    static thread_local RefList sorted;
     static thread_local std::vector<double> right_area;
     static thread_local std::vector<Aabb> right_box;
     sorted.assign(refs.begin(), refs.end());
@@ -213,7 +261,7 @@ inline int object_bin(float c, float lo, float scale) {
     return std::clamp(b, 0, kObjectBins - 1);
 }
 
-Split binned_object_split(const std::vector<Ref>& refs, const Aabb& cbox) {
+Split binned_object_split(const RefList& refs, const Aabb& cbox) {
     Split best;
     const size_t n = refs.size();
     for (int a = 0; a < 3; ++a) {
@@ -275,31 +323,43 @@ struct SpatialBins {
     }
 };
 
-/// Bin planes along one axis: plane[0] = lo, plane[B] = hi, evenly spaced in
-/// between (double arithmetic rounded to nearest; made monotone).
-std::vector<float> bin_planes(float lo, float hi, int bins) {
-    std::vector<float> p(bins + 1);
+/// Bin planes along one axis: p[0] = lo, p[B] = hi, evenly spaced in
+/// between (double arithmetic rounded to nearest; made monotone), and the
+/// factor that maps a coordinate to a first guess of its bin.
+struct BinPlanes {
+    std::vector<float> p;
+    double scale = 0.0;  // bins / (hi - lo); 0 for a zero-width range
+    int bins() const { return int(p.size()) - 1; }
+    const float* data() const { return p.data(); }
+    float operator[](int i) const { return p[size_t(i)]; }
+};
+BinPlanes bin_planes(float lo, float hi, int bins) {
+    BinPlanes bp;
+    std::vector<float>& p = bp.p;
+    p.resize(size_t(bins) + 1);
     p[0] = lo;
     p[bins] = hi;
     for (int i = 1; i < bins; ++i) {
         p[i] = float(double(lo) + (double(hi) - double(lo)) * double(i) / double(bins));
         p[i] = std::clamp(p[i], p[i - 1], hi);
     }
-    return p;
+    const double width = double(hi) - double(lo);
+    bp.scale = width > 0.0 ? double(bins) / width : 0.0;
+    return bp;
 }
 
 /// First guess of the bin of x (any value in 0..bins-1); bin_of_lo/hi then
 /// step to the exact answer, which is defined by the planes alone.
-inline int bin_guess(const std::vector<float>& p, float x) {
-    const int bins = int(p.size()) - 1;
-    const double g = (double(x) - p[0]) * double(bins) / (double(p[bins]) - p[0]);
-    if (!(g > 0.0)) return 0;  // also NaN (zero-width range)
+inline int bin_guess(const BinPlanes& p, float x) {
+    const int bins = p.bins();
+    const double g = (double(x) - p[0]) * p.scale;
+    if (!(g > 0.0)) return 0;  // also NaN
     return g >= double(bins - 1) ? bins - 1 : int(g);
 }
 /// Bin of a lower bound: plane[b] <= x < plane[b+1] (clamped to the bins),
 /// i.e. the number of inner planes plane[1..bins-1] that are <= x.
-int bin_of_lo(const std::vector<float>& p, float x) {
-    const int bins = int(p.size()) - 1;
+inline int bin_of_lo(const BinPlanes& p, float x) {
+    const int bins = p.bins();
     int b = bin_guess(p, x);
     while (b > 0 && p[b] > x) --b;
     while (b < bins - 1 && p[b + 1] <= x) ++b;
@@ -308,8 +368,8 @@ int bin_of_lo(const std::vector<float>& p, float x) {
 /// Bin of an upper bound: plane[b] < x <= plane[b+1], so a reference that only
 /// touches a plane from the left is not counted in the bin right of it; the
 /// number of inner planes that are < x.
-int bin_of_hi(const std::vector<float>& p, float x) {
-    const int bins = int(p.size()) - 1;
+inline int bin_of_hi(const BinPlanes& p, float x) {
+    const int bins = p.bins();
     int b = bin_guess(p, x);
     while (b > 0 && p[b] >= x) --b;
     while (b < bins - 1 && p[b + 1] < x) ++b;
@@ -320,30 +380,43 @@ class Builder {
 public:
     Builder(const Scene& scene, const SbvhConfig& config) : scene_(scene), config_(config) {}
 
-    /// `chops`: non-shrinking spatial splits on the path from the root.
-    TmpNode* build(std::vector<Ref>& refs, uint64_t budget, int depth, int chops) {
-        TmpNode* node = &nodes_.local().emplace_back();
+    /// Root of the build: the task-parallel top of the tree as pieces.
+    std::unique_ptr<Piece> build(RefList& refs, uint64_t budget) { return build_piece(refs, budget, 0, 0); }
+
+    uint64_t spatial_splits() const { return spatial_splits_.load(); }
+    uint64_t object_splits() const { return object_splits_.load(); }
+
+private:
+    /// Children of one split node, and what they inherit.
+    struct Children {
+        RefList left, right;
+        uint64_t budget_left = 0, budget_right = 0;
+        int chops = 0;
+    };
+
+    /// Decides node `refs`: returns false for a leaf (one reference), else
+    /// partitions the references into `kids`. `box` gets the node's bounds.
+    /// `refs` is released either way. `chops`: non-shrinking spatial splits
+    /// on the path from the root.
+    bool split_node(RefList& refs, uint64_t budget, int depth, int chops, Aabb& box, Children& kids) {
         const size_t n = refs.size();
         const Bounds bounds = compute_bounds(refs);
-        node->box = bounds.box;
-        if (n == 1) {
-            node->prim = refs[0].tri;
-            return node;
-        }
+        box = bounds.box;
+        if (n == 1) return false;
         if (depth == 0) root_area_ = bounds.box.half_area();
 
         // 1. Best object split: full sweep for small nodes or when the
         //    centroids do not spread (identical references), bins otherwise.
         Split object;
-        std::vector<Ref> sorted;  // sweep: the references in the best axis' order
+        RefList sorted;  // sweep: the references in the best axis' order
         if (n > kSweepMaxRefs) object = binned_object_split(refs, bounds.centroids);
         if (object.kind == Split::kNone) object = sweep_object_split(refs, sorted);
 
         // 2. Spatial split, only where the object split's children overlap
         //    by more than alpha * A(root) (Stich et al. 2009, section 4.5) and
         //    the subtree still has reference budget.
-        Split best = object;
-        std::vector<Ref> left, right;
+        RefList& left = kids.left;
+        RefList& right = kids.right;
         bool done = false;
         // Bitwise equal child boxes: the references coincide (duplicated
         // triangles); chopping them never separates anything.
@@ -355,7 +428,6 @@ public:
                 if (spatial.cost < object.cost &&
                     spatial_partition(refs, spatial, object.cost, budget,
                                       chops < kMaxNonShrinkingSpatial, left, right)) {
-                    best = spatial;
                     done = true;
                     spatial_splits_.fetch_add(1, std::memory_order_relaxed);
                 }
@@ -369,38 +441,57 @@ public:
         // Budget: duplicates made here are paid for; the rest is shared in
         // proportion to the children's reference counts (integer arithmetic,
         // deterministic).
-        const uint64_t dup = left.size() + right.size() - n;
+        const uint64_t both = left.size() + right.size();
+        const uint64_t dup = both - n;
         const uint64_t rest = budget - dup;  // spatial_partition ensured dup <= budget
-        const uint64_t bl = rest / (left.size() + right.size()) * left.size() +
-                            rest % (left.size() + right.size()) * left.size() / (left.size() + right.size());
-        const uint64_t br = rest - bl;
-        std::vector<Ref>().swap(refs);  // free the parent's list before recursing
-        const int child_chops = chops + ((left.size() == n || right.size() == n) ? 1 : 0);
+        kids.budget_left = rest / both * left.size() + rest % both * left.size() / both;
+        kids.budget_right = rest - kids.budget_left;
+        kids.chops = chops + ((left.size() == n || right.size() == n) ? 1 : 0);
+        RefList().swap(refs);  // free the parent's list before recursing
+        return true;
+    }
 
-        if (n >= kTaskRefs) {
-            tbb::task_group g;
-            g.run([&] { node->child[0] = build(left, bl, depth + 1, child_chops); });
-            node->child[1] = build(right, br, depth + 1, child_chops);
-            g.wait();
-        } else {
-            node->child[0] = build(left, bl, depth + 1, child_chops);
-            node->child[1] = build(right, br, depth + 1, child_chops);
+    /// Top of the tree: nodes of at least kTaskRefs references; their two
+    /// children are built as parallel tasks. Smaller subtrees become blocks.
+    std::unique_ptr<Piece> build_piece(RefList& refs, uint64_t budget, int depth, int chops) {
+        auto piece = std::make_unique<Piece>();
+        if (refs.size() < kTaskRefs) {
+            piece->block.reserve(2 * refs.size() - 1);  // exact without spatial splits
+            build_block(piece->block, refs, budget, depth, chops);
+            return piece;
         }
-        return node;
+        Children kids;
+        if (!split_node(refs, budget, depth, chops, piece->node.box, kids)) return piece;  // unreachable: n >= 2
+        tbb::task_group g;
+        g.run([&] { piece->child[0] = build_piece(kids.left, kids.budget_left, depth + 1, kids.chops); });
+        piece->child[1] = build_piece(kids.right, kids.budget_right, depth + 1, kids.chops);
+        g.wait();
+        return piece;
     }
 
-    uint64_t spatial_splits() const { return spatial_splits_.load(); }
-    /// Nodes made so far, over all threads (sizes the flattened array exactly).
-    size_t node_count() const {
-        size_t n = 0;
-        for (const auto& d : nodes_) n += d.size();
-        return n;
+    /// A subtree built by one task straight into `out`, in canonical
+    /// depth-first order (left subtree first); returns the node's index.
+    uint32_t build_block(Block& out, RefList& refs, uint64_t budget, int depth, int chops) {
+        const uint32_t index = uint32_t(out.size());
+        out.emplace_back();
+        const uint32_t prim = refs.size() == 1 ? refs[0].tri : kInvalidIndex;
+        Aabb box;
+        Children kids;
+        const bool internal = split_node(refs, budget, depth, chops, box, kids);
+        out[index].box = box;  // (out may have moved: index, not reference)
+        if (!internal) {
+            out[index].prim = prim;
+            return index;
+        }
+        const uint32_t l = build_block(out, kids.left, kids.budget_left, depth + 1, kids.chops);
+        const uint32_t r = build_block(out, kids.right, kids.budget_right, depth + 1, kids.chops);
+        out[index].child[0] = l;
+        out[index].child[1] = r;
+        return index;
     }
-    uint64_t object_splits() const { return object_splits_.load(); }
 
-private:
-    void object_partition(const std::vector<Ref>& refs, const std::vector<Ref>& sorted, const Split& s,
-                          std::vector<Ref>& left, std::vector<Ref>& right) {
+    void object_partition(const RefList& refs, const RefList& sorted, const Split& s,
+                          RefList& left, RefList& right) {
         if (s.kind == Split::kSweep) {
             left.assign(sorted.begin(), sorted.begin() + ptrdiff_t(s.index));
             right.assign(sorted.begin() + ptrdiff_t(s.index), sorted.end());
@@ -427,7 +518,7 @@ private:
     /// few chops); only where some coarse plane comes within
     /// kSpatialGateSlack of the object split's cost is it binned again with
     /// the full bin count. Deterministic: a function of the node's references.
-    Split spatial_split(const std::vector<Ref>& refs, const Aabb& box, double object_cost) {
+    Split spatial_split(const RefList& refs, const Aabb& box, double object_cost) {
         Split best;
         const size_t n = refs.size();
         // Small nodes get fewer bins (2n, at least 4): the binning cost is
@@ -439,7 +530,7 @@ private:
             for (const bool full : {false, true}) {  // coarse pre-check, then all bins
                 const int nbb = full ? nb : std::min(nb, kSpatialGateBins);
                 if (!full && nbb == nb) continue;  // few bins anyway: no pre-check
-                const std::vector<float> planes = bin_planes(box.lo[a], box.hi[a], nbb);
+                const BinPlanes planes = bin_planes(box.lo[a], box.hi[a], nbb);
                 auto body = [&](const tbb::blocked_range<size_t>& r, SpatialBins bins) {
                     for (size_t i = r.begin(); i != r.end(); ++i) {
                         bin_reference(refs[i], a, planes, bins);
@@ -485,7 +576,7 @@ private:
     /// bin planes it spans (clipped against the triangle itself, intersected
     /// with the reference's box); enter/exit counts go to the first/last bin
     /// that really holds part of it.
-    void bin_reference(const Ref& r, int a, const std::vector<float>& planes, SpatialBins& bins) const {
+    void bin_reference(const Ref& r, int a, const BinPlanes& planes, SpatialBins& bins) const {
         const int b0 = bin_of_lo(planes, r.box.lo[a]);
         const int b1 = std::max(b0, bin_of_hi(planes, r.box.hi[a]));
         if (b0 == b1) {
@@ -497,7 +588,7 @@ private:
         const auto tri = scene_.triangle(r.tri);
         static thread_local std::vector<Aabb> parts;  // scratch, no task switch while in use
         if (parts.size() < size_t(kMaxBins)) parts.resize(kMaxBins);
-        chop_triangle(tri, a, planes.data() + b0, b1 - b0 + 1, r.box, parts.data());
+        chop_triangle_estimate(tri, a, planes.data() + b0, b1 - b0 + 1, r.box, parts.data());
         int first = -1, last = -1;
         for (int b = b0; b <= b1; ++b) {
             const Aabb& part = parts[b - b0];
@@ -521,9 +612,9 @@ private:
     /// be empty, a side would keep all references (allowed only
     /// kMaxNonShrinkingSpatial times per path), the duplicates exceed the budget, or the real cost is not
     /// below the object split's.
-    bool spatial_partition(const std::vector<Ref>& refs, const Split& s, double object_cost,
-                           uint64_t budget, bool allow_nonshrinking, std::vector<Ref>& left,
-                           std::vector<Ref>& right) {
+    bool spatial_partition(const RefList& refs, const Split& s, double object_cost,
+                           uint64_t budget, bool allow_nonshrinking, RefList& left,
+                           RefList& right) {
         const int a = s.axis;
         const float plane = s.plane;
         const float kInf = std::numeric_limits<float>::infinity();
@@ -575,29 +666,34 @@ private:
     const SbvhConfig& config_;
     double root_area_ = 0.0;
     std::atomic<uint64_t> spatial_splits_{0}, object_splits_{0};
-    tbb::enumerable_thread_specific<std::deque<TmpNode>> nodes_;
 };
 
-/// Canonical depth-first numbering (left subtree first), root = node 0.
-void flatten(const TmpNode* root, size_t node_count, BinaryBvh& out) {
-    out.nodes.clear();
-    out.nodes.reserve(node_count);  // no reallocation peak (both copies alive) on big scenes
-    struct Item { const TmpNode* node; uint32_t parent; int side; };
-    std::vector<Item> stack{{root, kInvalidIndex, 0}};
-    while (!stack.empty()) {
-        const Item it = stack.back();
-        stack.pop_back();
-        const uint32_t index = uint32_t(out.nodes.size());
-        if (it.parent != kInvalidIndex) out.nodes[it.parent].child[it.side] = index;
-        BinaryNode bn;
-        bn.box = it.node->box;
-        bn.prim = it.node->prim;
-        out.nodes.push_back(bn);
-        if (it.node->prim == kInvalidIndex) {
-            stack.push_back({it.node->child[1], index, 1});
-            stack.push_back({it.node->child[0], index, 0});
+size_t piece_nodes(const Piece& p) {
+    return p.block.empty() ? 1 + piece_nodes(*p.child[0]) + piece_nodes(*p.child[1]) : p.block.size();
+}
+
+/// Canonical depth-first numbering (left subtree first), root = node 0: top
+/// nodes in preorder, each block appended whole with its indices offset (a
+/// block already is in that order) and released right after.
+void flatten(Piece& p, std::vector<BinaryNode>& out) {
+    if (!p.block.empty()) {
+        const uint32_t offset = uint32_t(out.size());
+        for (BinaryNode n : p.block) {
+            if (!n.is_leaf()) {
+                n.child[0] += offset;
+                n.child[1] += offset;
+            }
+            out.push_back(n);
         }
+        Block().swap(p.block);
+        return;
     }
+    const size_t index = out.size();
+    out.push_back(p.node);
+    out[index].child[0] = uint32_t(out.size());
+    flatten(*p.child[0], out);
+    out[index].child[1] = uint32_t(out.size());
+    flatten(*p.child[1], out);
 }
 
 }  // namespace
@@ -626,15 +722,17 @@ bool build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out, st
     const uint64_t extra = uint64_t(std::max(0.0, extra_d));
 
     auto run = [&] {
-        std::vector<Ref> refs(tris);
+        RefList refs(tris);
         for (size_t i = 0; i < tris; ++i) {
             Aabb b;
             for (const Vec3& v : scene.triangle(i)) b.grow(v);
             refs[i] = Ref{b, uint32_t(i)};
         }
         Builder builder(scene, config);
-        const TmpNode* root = builder.build(refs, extra, 0, 0);
-        flatten(root, builder.node_count(), out);
+        const std::unique_ptr<Piece> root = builder.build(refs, extra);
+        out.nodes.clear();
+        out.nodes.reserve(piece_nodes(*root));  // exact: no reallocation copy
+        flatten(*root, out.nodes);
         out.spatial_splits = builder.spatial_splits();
         out.object_splits = builder.object_splits();
     };

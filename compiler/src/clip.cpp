@@ -159,6 +159,58 @@ void chop_triangle(const std::array<Vec3, 3>& tri, int axis, const float* planes
     }
 }
 
+void chop_triangle_estimate(const std::array<Vec3, 3>& tri, int axis, const float* planes, int slabs,
+                            const Aabb& ref, Aabb* out) {
+    // Plain float arithmetic: the crossing points are off by a few ulps in
+    // either direction, which only moves the SAH estimate of a candidate
+    // plane; no box from here is ever stored.
+    float emin[3], emax[3], inv[3];
+    for (int e = 0; e < 3; ++e) {
+        const Vec3& a = tri[e];
+        const Vec3& b = tri[e == 2 ? 0 : e + 1];
+        emin[e] = std::min(a[axis], b[axis]);
+        emax[e] = std::max(a[axis], b[axis]);
+        inv[e] = emax[e] > emin[e] ? 1.0f / (b[axis] - a[axis]) : 0.0f;
+    }
+    auto cut = [&](float c, Aabb& box) {
+        for (int e = 0; e < 3; ++e) {
+            if (!(emin[e] < c && c < emax[e])) continue;
+            const Vec3& a = tri[e];
+            const Vec3& b = tri[e == 2 ? 0 : e + 1];
+            const float t = (c - a[axis]) * inv[e];
+            for (int j = 0; j < 3; ++j) {
+                const float v = j == axis ? c : a[j] + t * (b[j] - a[j]);
+                box.lo[j] = std::min(box.lo[j], v);
+                box.hi[j] = std::max(box.hi[j], v);
+            }
+        }
+    };
+    Aabb lower;
+    cut(planes[0], lower);
+    for (int s = 0; s < slabs; ++s) {
+        const float lo = planes[s], hi = planes[s + 1];
+        Aabb upper;
+        cut(hi, upper);
+        Aabb part = lower;
+        for (int j = 0; j < 3; ++j) {
+            part.lo[j] = std::min(part.lo[j], upper.lo[j]);
+            part.hi[j] = std::max(part.hi[j], upper.hi[j]);
+        }
+        for (int k = 0; k < 3; ++k) {
+            const float c = tri[k][axis];
+            if (c >= lo && c <= hi) part.grow(tri[k]);
+        }
+        for (int j = 0; j < 3; ++j) {
+            part.lo[j] = std::max(part.lo[j], ref.lo[j]);
+            part.hi[j] = std::min(part.hi[j], ref.hi[j]);
+        }
+        part.lo[axis] = std::max(part.lo[axis], lo);
+        part.hi[axis] = std::min(part.hi[axis], hi);
+        out[s] = part.empty() ? Aabb{} : part;
+        lower = upper;
+    }
+}
+
 Aabb clip_triangle(const std::array<Vec3, 3>& tri, int axis, float slab_lo, float slab_hi,
                    const Aabb& ref) {
     const float planes[2] = {slab_lo, slab_hi};

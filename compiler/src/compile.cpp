@@ -1,8 +1,13 @@
 // The compile pipeline: each phase is one call into its own module; this file
 // only sequences them, times them and collects statistics.
+#include <malloc.h>
 #include <sys/resource.h>
+#include <unistd.h>
+
+#include <tbb/task_arena.h>
 
 #include <chrono>
+#include <cstdio>
 #include <string>
 
 #include "cwbvh/compiler/auction.h"
@@ -23,6 +28,22 @@ uint64_t peak_rss_bytes() {
     return uint64_t(usage.ru_maxrss) * 1024u;  // Linux reports KiB
 }
 
+/// Resident set size now (second field of /proc/self/statm, in pages); 0 if unreadable.
+uint64_t rss_now_bytes() {
+    FILE* f = std::fopen("/proc/self/statm", "r");
+    if (!f) return 0;
+    unsigned long long size = 0, resident = 0;
+    const int got = std::fscanf(f, "%llu %llu", &size, &resident);
+    std::fclose(f);
+    return got == 2 ? uint64_t(resident) * uint64_t(sysconf(_SC_PAGESIZE)) : 0;
+}
+
+/// Hands freed heap pages back to the OS. The builders free large,
+/// fragmented allocations made on TBB worker threads (their own malloc
+/// arenas), which later phases on the main thread cannot reuse; without this
+/// they stay resident and add to the peak.
+void release_free_heap() { malloc_trim(0); }
+
 /// Times one phase and reports it through the callback.
 class PhaseTimer {
 public:
@@ -32,9 +53,13 @@ public:
         if (cb_) cb_(name, false, 0.0);
         const auto start = std::chrono::steady_clock::now();
         const bool ok = body();
+        // Whatever the phase freed (the importers' model, the builder's
+        // reference lists, ...) goes back to the OS before the next one.
+        release_free_heap();
         const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         stats_.seconds.emplace_back(name, seconds);
         stats_.peak_rss_after.emplace_back(name, peak_rss_bytes());
+        stats_.rss_after.emplace_back(name, rss_now_bytes());
         if (cb_ && ok) cb_(name, true, seconds);
         return ok;
     }
@@ -44,9 +69,9 @@ private:
     const PhaseCallback& cb_;
 };
 
-}  // namespace
 
-bool compile(const CompileOptions& options, CompileStats& stats, std::string& error, const PhaseCallback& on_phase) {
+bool compile_phases(const CompileOptions& options, CompileStats& stats, std::string& error,
+                    const PhaseCallback& on_phase) {
     PhaseTimer timer(stats, on_phase);
 
     Scene scene;
@@ -91,10 +116,16 @@ bool compile(const CompileOptions& options, CompileStats& stats, std::string& er
         }))
         return false;
 
+    // The binary tree is only needed again for the optional BVH2 section;
+    // without it, it is the largest structure alive (36 bytes per node).
+    if (!options.keep_sbvh) BinaryBvh{}.nodes.swap(binary.nodes);
+
     EmitInput emit;
     emit.options = &options;
     emit.scene = &scene;
-    emit.binary = &binary;
+    emit.binary = options.keep_sbvh ? &binary : nullptr;
+    emit.references = stats.references;
+    emit.binary_nodes = stats.binary_nodes;
     emit.wide = &wide;
     emit.collapse = &collapse_config;
     emit.sbvh = &sbvh_config;
@@ -111,6 +142,17 @@ bool compile(const CompileOptions& options, CompileStats& stats, std::string& er
 
     stats.peak_rss_bytes = peak_rss_bytes();
     return true;
+}
+
+}  // namespace
+
+bool compile(const CompileOptions& options, CompileStats& stats, std::string& error, const PhaseCallback& on_phase) {
+    if (options.threads <= 0) return compile_phases(options, stats, error, on_phase);
+    // Every parallel phase (SBVH, slots, ...) runs with at most `threads` threads.
+    tbb::task_arena arena(options.threads);
+    bool ok = false;
+    arena.execute([&] { ok = compile_phases(options, stats, error, on_phase); });
+    return ok;
 }
 
 }  // namespace cwbvh::compiler

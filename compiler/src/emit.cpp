@@ -49,8 +49,8 @@ BuildInfo build_info(const EmitInput& in, const EmitResult& out) {
     info.dropped_degenerate = count(scene.dropped, "degenerate");
     for (const auto& [kind, n] : scene.skipped_primitives) info.skipped_primitives += n;
     info.triangles = scene.triangle_count();
-    info.references = in.binary->references;
-    info.binary_nodes = in.binary->nodes.size();
+    info.references = in.references;
+    info.binary_nodes = in.binary_nodes;
     info.wide_nodes = out.tree.nodes.size();
     info.sah_binary = in.sah_binary;
     info.sah_wide = out.sah_wide;
@@ -80,6 +80,10 @@ bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error) {
         return false;
     if (in.options->verify && !verify_encoded(out.tree, *in.wide, *in.scene, error)) {
         error = "internal error: encoded tree failed verification: " + error;
+        return false;
+    }
+    if (in.options->keep_sbvh && !in.binary) {
+        error = "internal error: --keep-sbvh without the binary tree";
         return false;
     }
     if (in.options->keep_sbvh && !encode_bvh2(*in.binary, *in.wide, out.tree, out.tree.bvh2, error)) return false;

@@ -38,6 +38,8 @@ std::string stats_to_json(const CompileStats& s) {
     j["peak_rss_bytes"] = s.peak_rss_bytes;
     j["peak_rss_after"] = nlohmann::ordered_json::object();
     for (const auto& [phase, b] : s.peak_rss_after) j["peak_rss_after"][phase] = b;
+    j["rss_after"] = nlohmann::ordered_json::object();
+    for (const auto& [phase, b] : s.rss_after) j["rss_after"][phase] = b;
     j["warnings"] = s.warnings;
     return j.dump(2) + "\n";
 }

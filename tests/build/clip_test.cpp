@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -231,6 +232,47 @@ TEST(Clip, ChopEqualsClipPerSlab) {
         for (int s = 0; s < slabs; ++s) {
             const Aabb one = clip_triangle(t, axis, planes[s], planes[s + 1], tb);
             ASSERT_EQ(std::memcmp(&one, &out[s], sizeof(Aabb)), 0) << i << " " << s;
+        }
+    }
+}
+
+TEST(Clip, EstimateIsCloseToConservativeChop) {
+    // chop_triangle_estimate (plain float, used only for the SBVH's plane
+    // costs) may differ from the conservative chop by rounding, nothing more:
+    // every bound within a few ulps of the coordinate scale, and a slab the
+    // conservative chop finds empty is empty or degenerate-thin here.
+    std::mt19937_64 rng(12);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f), f(0.0f, 1.0f);
+    for (int i = 0; i < 5000; ++i) {
+        Tri t;
+        const float scale = std::ldexp(1.0f, int(rng() % 40) - 20);
+        for (auto& p : t)
+            for (float& c : p) c = u(rng) * scale;
+        const int axis = int(rng() % 3);
+        const Aabb tb = tri_box(t);
+        const int slabs = 1 + int(rng() % 12);
+        std::vector<float> planes(slabs + 1);
+        for (int s = 0; s <= slabs; ++s) planes[s] = tb.lo[axis] + (tb.hi[axis] - tb.lo[axis]) * f(rng);
+        std::sort(planes.begin(), planes.end());
+        std::vector<Aabb> exact(slabs), est(slabs);
+        chop_triangle(t, axis, planes.data(), slabs, tb, exact.data());
+        chop_triangle_estimate(t, axis, planes.data(), slabs, tb, est.data());
+        const float tol = 8.0f * std::numeric_limits<float>::epsilon() * 2.0f * scale;
+        for (int s = 0; s < slabs; ++s) {
+            if (exact[s].empty()) {
+                if (!est[s].empty()) {
+                    EXPECT_LE(est[s].half_area(), double(tol) * 4.0 * scale) << i;
+                }
+                continue;
+            }
+            if (est[s].empty()) {
+                EXPECT_LE(exact[s].half_area(), double(tol) * 4.0 * scale) << i << " " << s;
+                continue;
+            }
+            for (int j = 0; j < 3; ++j) {
+                EXPECT_NEAR(est[s].lo[j], exact[s].lo[j], tol) << i << " " << s << " " << j;
+                EXPECT_NEAR(est[s].hi[j], exact[s].hi[j], tol) << i << " " << s << " " << j;
+            }
         }
     }
 }

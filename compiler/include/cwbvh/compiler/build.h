@@ -89,6 +89,13 @@ Aabb clip_triangle(const std::array<Vec3, 3>& tri, int axis, float slab_lo, floa
 void chop_triangle(const std::array<Vec3, 3>& tri, int axis, const float* planes, int slabs,
                    const Aabb& ref, Aabb* out);
 
+/// Like chop_triangle, in plain float arithmetic without outward rounding:
+/// each box may be a few ulps too small or too large. For cost estimates only
+/// (the SBVH's spatial-split binning); references' boxes always come from
+/// clip_triangle.
+void chop_triangle_estimate(const std::array<Vec3, 3>& tri, int axis, const float* planes, int slabs,
+                            const Aabb& ref, Aabb* out);
+
 /// Checks a BinaryBvh against its scene: canonical depth-first layout, root 0,
 /// internal boxes contain their children's boxes, every leaf box meets its
 /// triangle's box, every triangle has >= 1 leaf, `references` == leaves, and

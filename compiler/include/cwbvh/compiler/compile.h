@@ -46,6 +46,8 @@ struct CompileStats {
     uint64_t peak_rss_bytes = 0;
     /// Peak RSS of the process so far, sampled at the end of each phase (shows which phase peaks).
     std::vector<std::pair<std::string, uint64_t>> peak_rss_after;
+    /// Resident set size at the end of each phase (what the next phase starts from).
+    std::vector<std::pair<std::string, uint64_t>> rss_after;
     std::vector<std::string> warnings;
 };
 

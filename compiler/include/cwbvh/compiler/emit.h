@@ -17,7 +17,9 @@ namespace cwbvh::compiler {
 struct EmitInput {
     const CompileOptions* options = nullptr;
     const Scene* scene = nullptr;
-    const BinaryBvh* binary = nullptr;
+    const BinaryBvh* binary = nullptr;   ///< only needed (and only set) with options->keep_sbvh
+    uint64_t references = 0;             ///< binary leaves (BILD)
+    uint64_t binary_nodes = 0;           ///< binary nodes (BILD)
     const WideBvh* wide = nullptr;
     const CollapseConfig* collapse = nullptr;
     const SbvhConfig* sbvh = nullptr;
