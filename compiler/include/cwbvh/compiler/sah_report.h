@@ -22,4 +22,15 @@ double report_sah_binary(const BinaryBvh& bvh);
 /// slot counts its decoded box times its triangle count.
 double report_sah_wide(std::span<const CwbvhNode> nodes, const Aabb& root);
 
+/// report_sah_wide split into its two sums (normalised the same way):
+/// `internal` = the node term (root included), `leaf` = the triangle term.
+/// The same split on the exact boxes is sah_cost_wide(wide, 1, 0) and
+/// sah_cost_wide(wide, 0, 1); decoded minus exact is the quantization loss.
+struct WideSahParts {
+    double internal = 0;
+    double leaf = 0;
+    double total = 0;  ///< report_sah_wide (one running sum in node order: == internal + leaf up to rounding)
+};
+WideSahParts report_sah_wide_parts(std::span<const CwbvhNode> nodes, const Aabb& root);
+
 }  // namespace cwbvh::compiler
