@@ -439,12 +439,21 @@ private:
         }
 
         // Budget: duplicates made here are paid for; the rest is shared in
-        // proportion to the children's reference counts (integer arithmetic,
-        // deterministic).
+        // proportion to the sum of the children's reference box areas:
+        // spatial splits pay off where references are large for their node
+        // (floors, walls), not where a dense mesh has many small triangles.
+        // Measured at growth 0.2 against sharing by reference count (binary
+        // SAH): fg_cg57 29.88 -> 29.07, torcs 11.85 -> 11.83, iceland
+        // 27.63 -> 27.47, sponza 62.35 -> 62.59 (unlimited: 28.45, 11.61,
+        // 27.24, 61.32). Deterministic: sums in list order, one rounding.
         const uint64_t both = left.size() + right.size();
         const uint64_t dup = both - n;
         const uint64_t rest = budget - dup;  // spatial_partition ensured dup <= budget
-        kids.budget_left = rest / both * left.size() + rest % both * left.size() / both;
+        double wl = 0.0, wr = 0.0;
+        for (const Ref& r : left) wl += r.box.half_area();
+        for (const Ref& r : right) wr += r.box.half_area();
+        const double share = wl + wr > 0.0 ? wl / (wl + wr) : double(left.size()) / double(both);
+        kids.budget_left = std::min<uint64_t>(rest, uint64_t(std::floor(double(rest) * share)));
         kids.budget_right = rest - kids.budget_left;
         kids.chops = chops + ((left.size() == n || right.size() == n) ? 1 : 0);
         RefList().swap(refs);  // free the parent's list before recursing

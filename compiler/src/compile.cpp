@@ -94,6 +94,7 @@ bool compile_phases(const CompileOptions& options, CompileStats& stats, std::str
     SbvhConfig sbvh_config;
     sbvh_config.split_alpha = options.split_alpha;
     sbvh_config.threads = options.threads;
+    sbvh_config.max_reference_growth = options.max_reference_growth;
     if (!timer.run(options.builder == kBuilderEmbree ? "embree" : "sbvh", [&] {
             return options.builder == kBuilderEmbree ? build_embree(scene, sbvh_config, binary, error)
                                                      : build_sbvh(scene, sbvh_config, binary, error);

@@ -95,7 +95,11 @@ TEST(Sbvh, RandomSoup) {
 
 TEST(Sbvh, SpatialSplitsOnSlivers) {
     const Scene s = test::sliver_scene(2000);
-    const BinaryBvh bvh = build_ok(s);
+    // Every sliver spans the scene: the first useful spatial split duplicates
+    // all of them, more than the default budget (0.2) allows; give it room.
+    SbvhConfig roomy;
+    roomy.max_reference_growth = 1.0;
+    const BinaryBvh bvh = build_ok(s, roomy);
     EXPECT_GT(bvh.spatial_splits, 0u);
     EXPECT_GT(bvh.references, s.triangle_count());
     SbvhConfig plain;

@@ -26,6 +26,8 @@ TEST(CwbvhcCli, UsageErrorsExitTwo) {
     EXPECT_EQ(run_tool("cwbvhc", {"a.obj", "-o", "x", "--threads", "0"}).exit_code, 2);
     EXPECT_EQ(run_tool("cwbvhc", {"a.obj", "-o", "x", "--builder", "magic"}).exit_code, 2);
     EXPECT_EQ(run_tool("cwbvhc", {"a.obj", "-o", "x", "--split-alpha", "nan"}).exit_code, 2);
+    EXPECT_EQ(run_tool("cwbvhc", {"a.obj", "-o", "x", "--max-reference-growth", "-1"}).exit_code, 2);
+    EXPECT_EQ(run_tool("cwbvhc", {"a.obj", "-o", "x", "--max-reference-growth", "inf"}).exit_code, 2);
     const auto help = run_tool("cwbvhc", {"--help"});
     EXPECT_EQ(help.exit_code, 0);
     EXPECT_NE(help.out.find("usage: cwbvhc"), std::string::npos);
@@ -77,6 +79,11 @@ TEST(CwbvhcCli, StatsJsonHasTheDocumentedKeysAndMatchesTheFile) {
                             "wide_nodes", "avg_children", "max_leaf_triangles", "sah_binary", "sah_wide", "bytes",
                             "seconds", "peak_rss_bytes"})
         EXPECT_TRUE(j.contains(key)) << key;
+    for (const char* phase : {"import", "sbvh", "collapse", "slots", "encode", "write"}) {
+        EXPECT_TRUE(j["peak_rss_after"].contains(phase)) << phase;
+        EXPECT_TRUE(j["rss_after"].contains(phase)) << phase;
+        EXPECT_GT(j["rss_after"][phase].get<uint64_t>(), 0u) << phase;  // /proc/self/statm (Linux)
+    }
     EXPECT_EQ(j["input_triangles"], 3);
     EXPECT_EQ(j["dropped_triangles"]["degenerate"], 1);
     EXPECT_EQ(j["triangles"], 2);

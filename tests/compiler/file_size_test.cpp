@@ -1,5 +1,7 @@
 // Output-size target (spec section 3.8): a default cwbvhc file, source map
-// included, is at most 55 bytes per input triangle on a closed scanned mesh.
+// included, is at most 55 bytes per input triangle: on a closed scanned mesh
+// and, through the reference budget, on a scene of large triangles with many
+// spatial splits (Sponza, when the scene corpus is present).
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -32,6 +34,28 @@ TEST(FileSize, BunnyAtMost55BytesPerInputTriangle) {
     // One closed mesh, nothing dropped: the whole source map is one range.
     EXPECT_EQ(file->source_ranges().size(), 1u);
     EXPECT_EQ(file->stored_triangle_count(), input);
+}
+
+TEST(FileSize, SponzaAtMost55BytesPerInputTriangleWithTheDefaultBudget) {
+    const std::string sponza = std::string(CWBVH_SHARED_SCENES_DIR) + "/sponza_dabrovic.glb";
+    if (!fs::exists(sponza)) GTEST_SKIP() << sponza << " not present (scene corpus)";
+    const auto dir = cwbvh::test::temp_dir("filesize");
+    const std::string out = (dir / "sponza.cwbvh").string();
+    const std::string roomy = (dir / "sponza_g1.cwbvh").string();
+    ASSERT_EQ(cwbvh::test::run_tool("cwbvhc", {sponza, "-o", out, "--quiet"}).exit_code, 0);
+    ASSERT_EQ(cwbvh::test::run_tool("cwbvhc", {sponza, "-o", roomy, "--quiet", "--max-reference-growth", "1"}).exit_code,
+              0);
+    auto file = cwbvh::File::open(out);
+    auto file_g1 = cwbvh::File::open(roomy);
+    ASSERT_TRUE(file.ok() && file_g1.ok());
+    const uint64_t input = file->build_info()->input_triangles;
+    const uint64_t size = fs::file_size(out), size_g1 = fs::file_size(roomy);
+    std::printf("sponza: %.2f B/triangle, %.3f references/triangle (growth 1: %.2f B, %.3f)\n",
+                double(size) / double(input), double(file->triangles().size()) / double(input),
+                double(size_g1) / double(input), double(file_g1->triangles().size()) / double(input));
+    EXPECT_LE(size, 55 * input);
+    EXPECT_LE(file->triangles().size(), size_t(1.2 * double(file->stored_triangle_count())) + 1);
+    EXPECT_GT(size_g1, size) << "the budget is what keeps Sponza small";
 }
 
 }  // namespace
