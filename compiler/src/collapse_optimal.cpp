@@ -139,6 +139,29 @@ bool run_dp(const BinaryBvh& binary, const CollapseConfig& config, const std::ve
     return true;
 }
 
+/// The roots of the optimal forests of internal binary node n's two children
+/// (left gets internal_split roots, right the rest), left first; returns how
+/// many (2..8). These become the children of the wide node made from n.
+int wide_roots(const BinaryBvh& binary, const std::vector<Decision>& dp, uint32_t n, uint32_t* roots) {
+    int count = 0;
+    // expand(m, i): the roots of m's optimal forest of at most i roots.
+    // Depth <= 7 (every split hands >= 1 root to each side).
+    auto expand = [&](auto&& self, uint32_t m, int i) -> void {
+        const int s = dp[m].split[i - 1];
+        if (s == 0) {
+            roots[count++] = m;
+            return;
+        }
+        self(self, binary.nodes[m].child[0], s);
+        self(self, binary.nodes[m].child[1], i - s);
+    };
+    const int k = dp[n].internal_split;
+    expand(expand, binary.nodes[n].child[0], k);
+    expand(expand, binary.nodes[n].child[1], kWidth - k);
+    assert(count >= 2 && count <= kWidth);
+    return count;
+}
+
 }  // namespace
 
 bool collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
@@ -151,7 +174,28 @@ bool collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
     }
 
     // Backtracking: create wide nodes top-down. Each wide node gets the roots
-    // of its binary node's two child forests.
+    // of its binary node's two child forests. A first pass only counts the
+    // wide nodes so that the node array is allocated once (WideNode is 344
+    // bytes; growing by doubling had old and new arrays alive together).
+    size_t wide_nodes = 1;
+    if (!binary.nodes[0].is_leaf()) {
+        std::vector<uint32_t> pending{0};
+        uint32_t roots[kWidth];
+        while (!pending.empty()) {
+            const uint32_t m = pending.back();
+            pending.pop_back();
+            const int count = wide_roots(binary, dp, m, roots);
+            for (int c = 0; c < count; ++c) {
+                if (!dp[roots[c]].as_leaf) {
+                    ++wide_nodes;
+                    pending.push_back(roots[c]);
+                }
+            }
+        }
+    }
+    out.nodes.reserve(wide_nodes);
+    out.leaf_refs.reserve(ref_count[0]);  // <= one entry per binary leaf
+
     struct Work {
         uint32_t binary;
         uint32_t wide;
@@ -169,23 +213,7 @@ bool collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
     while (!work.empty()) {
         const Work w = work.back();
         work.pop_back();
-        const BinaryNode& b = binary.nodes[w.binary];
-        int count = 0;
-        // expand(m, i): the roots of m's optimal forest of at most i roots.
-        // Depth <= 7 (every split hands >= 1 root to each side).
-        auto expand = [&](auto&& self, uint32_t m, int i) -> void {
-            const int s = dp[m].split[i - 1];
-            if (s == 0) {
-                roots[count++] = m;
-                return;
-            }
-            self(self, binary.nodes[m].child[0], s);
-            self(self, binary.nodes[m].child[1], i - s);
-        };
-        const int k = dp[w.binary].internal_split;
-        expand(expand, b.child[0], k);
-        expand(expand, b.child[1], kWidth - k);
-        assert(count >= 2 && count <= kWidth);
+        const int count = wide_roots(binary, dp, w.binary, roots);
         uint32_t triangles = 0;
         for (int c = 0; c < count; ++c) {
             const uint32_t m = roots[c];
