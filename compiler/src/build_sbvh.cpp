@@ -520,6 +520,12 @@ private:
 
     /// Best spatial split (Stich et al. 2009, section 4.3), or none.
     ///
+    /// Pruning per axis, cheapest first: (1) spatial_lower_bound, from the
+    /// references' boxes alone, skips an axis where no plane can beat the
+    /// object split (never changes the result: identical trees on sponza,
+    /// fg_cg57, dragon_res2, dragon; dragon SBVH 3.30 -> 2.70-2.84 s single
+    /// thread); (2) the coarse pre-check below.
+    ///
     /// Pre-check per axis: chopping triangles is ~90% of the spatial-split
     /// binning, and at most nodes no plane beats the object split (bunny:
     /// 63k nodes try, 87 spatial splits are made). The axis is first binned
@@ -536,6 +542,8 @@ private:
         const int nb = int(std::min<size_t>(size_t(config_.bins), std::max<size_t>(4, 2 * n)));
         for (int a = 0; a < 3; ++a) {
             if (!(box.hi[a] > box.lo[a])) continue;
+            // Exact-enough pruning first: no plane can beat the object split.
+            if (!(spatial_lower_bound(refs, a, bin_planes(box.lo[a], box.hi[a], nb)) < object_cost)) continue;
             for (const bool full : {false, true}) {  // coarse pre-check, then all bins
                 const int nbb = full ? nb : std::min(nb, kSpatialGateBins);
                 if (!full && nbb == nb) continue;  // few bins anyway: no pre-check
@@ -577,6 +585,51 @@ private:
                 }
                 if (!full && !(gate_cost < (1.0 + kSpatialGateSlack) * object_cost)) break;
             }
+        }
+        return best;
+    }
+
+    /// A lower bound (up to rounding) of the cost of every spatial split plane
+    /// of `planes` along axis a, without chopping any triangle: a reference
+    /// whose box lies wholly on one side of a plane puts its box there (the
+    /// triangle part touches all faces of its box); one that straddles adds
+    /// its count to both sides and, as a bound, nothing to either box.
+    double spatial_lower_bound(const RefList& refs, int a, const BinPlanes& planes) const {
+        const int nb = planes.bins();
+        // Scratch reused across nodes (nothing in here waits on TBB).
+        static thread_local std::vector<Aabb> by_last, by_first, right;
+        static thread_local std::vector<uint32_t> enter, exit;
+        static thread_local std::vector<uint64_t> rcount;
+        by_last.assign(size_t(nb), Aabb{});
+        by_first.assign(size_t(nb), Aabb{});
+        right.assign(size_t(nb), Aabb{});
+        enter.assign(size_t(nb), 0);
+        exit.assign(size_t(nb), 0);
+        rcount.assign(size_t(nb), 0);
+        for (const Ref& r : refs) {
+            const int b0 = bin_of_lo(planes, r.box.lo[a]);
+            const int b1 = std::max(b0, bin_of_hi(planes, r.box.hi[a]));
+            merge(by_last[b1], r.box);
+            merge(by_first[b0], r.box);
+            ++enter[b0];
+            ++exit[b1];
+        }
+        Aabb acc;
+        uint64_t cnt = 0;
+        for (int b = nb - 1; b >= 1; --b) {  // wholly right of plane b: first bin >= b
+            merge(acc, by_first[b]);
+            cnt += exit[b];
+            right[b] = acc;
+            rcount[b] = cnt;
+        }
+        double best = std::numeric_limits<double>::infinity();
+        Aabb left;
+        uint64_t lcount = 0;
+        for (int b = 1; b < nb; ++b) {  // wholly left of plane b: last bin < b
+            merge(left, by_last[b - 1]);
+            lcount += enter[b - 1];
+            if (lcount == 0 || rcount[b] == 0) continue;
+            best = std::min(best, left.half_area() * double(lcount) + right[b].half_area() * double(rcount[b]));
         }
         return best;
     }
