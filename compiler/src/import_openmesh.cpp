@@ -147,6 +147,52 @@ int64_t expected_faces(const std::string& path, const std::string& ext, RawInput
     return -1;
 }
 
+/// OpenMesh 9.0's PLY header parser (_PLYReader_::can_u_read) reads the
+/// header as whitespace-separated tokens, not lines: it calls
+/// elements_.back() for a "property" before any "element" (a crash on an
+/// empty vector, e.g. when "1.0\x1a" glues the version to "element"), and
+/// loops forever on `while (keyword != "end_header")` once its stream has
+/// failed (a non-numeric version or count, or end of file). Replay its
+/// token reads and reject the header where either would happen.
+bool check_ply_tokens(const std::string& path, std::string& error) {
+    std::ifstream f(path, std::ios::binary);
+    if (!f) {
+        error = "cannot open file";
+        return false;
+    }
+    std::string line, keyword, file_type, a, b, c;
+    std::getline(f, line);  // "ply" (OpenMesh refuses anything else before parsing on)
+    float version = 0;
+    f >> keyword >> file_type >> version;
+    if (!f) {
+        error = "PLY header has no valid 'format <type> <version>' line";
+        return false;
+    }
+    bool element_seen = false;
+    unsigned int count = 0;
+    while (f >> keyword && keyword != "end_header") {
+        if (keyword == "comment") {
+            std::getline(f, line);
+        } else if (keyword == "element") {
+            f >> a >> count;
+            element_seen = true;
+        } else if (keyword == "property") {
+            if (!element_seen) {
+                error = "PLY header has a property before any element";
+                return false;
+            }
+            f >> a;
+            if (a == "list") f >> a >> b >> c;
+            else f >> b;
+        }
+    }
+    if (!f) {
+        error = "PLY header is malformed or has no end_header";
+        return false;
+    }
+    return true;
+}
+
 /// OpenMesh's PLY reader loops (practically) forever on element counts
 /// that the file cannot hold, e.g. 10^11 elements or elements without
 /// properties. Every element takes at least one byte in ASCII and binary
@@ -202,6 +248,131 @@ bool check_ply_header(const std::string& path, std::string& error) {
     return false;
 }
 
+/// OpenMesh 9.0's OBJ reader (Debian builds it with assertions on) aborts
+/// with `assert(!vhandles.empty())` when a face vertex has a texture index
+/// but no position index before it on the line ("f /1 2 3"). A face vertex
+/// without a position index is invalid OBJ, so reject it with its line.
+/// Tokenisation mirrors OBJReader.cc: getline, trim " \t\r\n", skip empty,
+/// '#' and whitespace-led lines, keyword by >>, face blocks by >>.
+bool check_obj_faces(const std::string& path, std::string& error) {
+    std::ifstream f(path, std::ios::binary);
+    if (!f) {
+        error = "cannot open file";
+        return false;
+    }
+    std::string line, keyword, block;
+    for (uint64_t number = 1; std::getline(f, line); ++number) {
+        const size_t start = line.find_first_not_of(" \t\r\n");
+        if (start == std::string::npos || line[start] == '#' ||
+            std::isspace(static_cast<unsigned char>(line[start])))
+            continue;
+        std::istringstream in(line.substr(start));
+        if (!(in >> keyword) || keyword != "f") continue;
+        while (in >> block) {
+            if (block[0] == '/') {
+                if (block.size() > 32) block = block.substr(0, 32) + "...";
+                error = "OBJ line " + std::to_string(number) + ": face vertex '" + block +
+                        "' has no position index";
+                return false;
+            }
+        }
+    }
+    return true;
+}
+
+/// OpenMesh 9.0's OFF reader trusts the header: it reserves nV/3*nV/nF
+/// elements up front (a corrupt count allocates gigabytes), keeps looping
+/// over nF faces (and over a face's vertex count) after the stream has
+/// failed or ended (practically forever for a huge count), and a missing
+/// count is read as an uninitialised value. So replay its reads here (same
+/// stream operations, same order, from its OFFReader.cc) and reject the file
+/// where they would fail: every element the header announces must be there.
+bool check_off(const std::string& path, std::string& error) {
+    std::ifstream f(path, std::ios::binary);
+    if (!f) {
+        error = "cannot open file";
+        return false;
+    }
+    f.seekg(0, std::ios::end);
+    const uint64_t size = uint64_t(f.tellg());
+    f.seekg(0);
+    // Header flags as in _OFFReader_::can_u_read: [ST][C][N][4][n]OFF [BINARY].
+    std::string first;
+    std::getline(f, first);
+    const char* p = first.c_str();
+    size_t left = std::min<size_t>(first.size(), 4095) + (f.eof() ? 0 : 1);
+    bool texcoord = false, color = false, normal = false;
+    if (left > 1 && p[0] == 'S' && p[1] == 'T') { texcoord = true; p += 2; left -= 2; }
+    if (left > 0 && p[0] == 'C') { color = true; ++p; --left; }
+    if (left > 0 && p[0] == 'N') { normal = true; ++p; --left; }
+    if (left > 0 && (p[0] == '4' || p[0] == 'n')) return true;  // OpenMesh refuses these
+    if (left < 3 || std::strncmp(p, "OFF", 3) != 0) return true;  // not OFF: OpenMesh refuses
+    left = left >= 4 ? left - 4 : 0;
+    const bool binary = left >= 6 && std::strncmp(p + 4, "BINARY", 6) == 0;
+
+    auto short_file = [&](const char* what, uint64_t i, uint64_t n) {
+        error = std::string("OFF file is truncated or unparsable at ") + what + " " +
+                std::to_string(i) + " of " + std::to_string(n);
+        return false;
+    };
+    unsigned int nv = 0, nf = 0, ne = 0;
+    if (binary) {
+        auto read_u32 = [&](unsigned int& v) {
+            uint32_t t = 0;
+            f.read(reinterpret_cast<char*>(&t), 4);
+            v = t;
+            return f.gcount() == 4;
+        };
+        if (!read_u32(nv) || !read_u32(nf) || !read_u32(ne)) {
+            error = "OFF header has missing or invalid vertex/face/edge counts";
+            return false;
+        }
+        if (nv > size || nf > size) {
+            error = "OFF header declares " + std::to_string(nv) + " vertices and " +
+                    std::to_string(nf) + " faces in a file of " + std::to_string(size) + " bytes";
+            return false;
+        }
+        const std::streamoff record = 12 + (normal ? 12 : 0) + (color ? 12 : 0) + (texcoord ? 8 : 0);
+        const uint64_t body = size - std::min<uint64_t>(size, uint64_t(f.tellg()));
+        if (uint64_t(nv) * uint64_t(record) > body) return short_file("vertex", body / record, nv);
+        f.seekg(std::streamoff(nv) * record, std::ios::cur);
+        for (unsigned int i = 0; i < nf; ++i) {
+            unsigned int k = 0;
+            if (!read_u32(k)) return short_file("face", i, nf);
+            const uint64_t rest = size - std::min<uint64_t>(size, uint64_t(f.tellg()));
+            if (uint64_t(k) * 4 > rest) return short_file("face", i, nf);
+            f.seekg(std::streamoff(k) * 4, std::ios::cur);
+        }
+        return true;
+    }
+    // ASCII (_OFFReader_::read_ascii).
+    if (!(f >> nv >> nf >> ne)) {
+        error = "OFF header has missing or invalid vertex/face/edge counts";
+        return false;
+    }
+    if (nv > size || nf > size) {
+        error = "OFF header declares " + std::to_string(nv) + " vertices and " +
+                std::to_string(nf) + " faces in a file of " + std::to_string(size) + " bytes";
+        return false;
+    }
+    float x = 0;
+    std::string rest;
+    for (unsigned int i = 0; i < nv; ++i) {
+        if (f.eof()) return short_file("vertex", i, nv);
+        for (int c = 0; c < (normal ? 6 : 3); ++c) f >> x;
+        if (f.fail()) return short_file("vertex", i, nv);
+        std::getline(f, rest);
+    }
+    for (unsigned int i = 0; i < nf; ++i) {
+        unsigned int k = 0, idx = 0;
+        if (!(f >> k)) return short_file("face", i, nf);
+        for (unsigned int j = 0; j < k; ++j)
+            if (!(f >> idx)) return short_file("face", i, nf);
+        if (color) std::getline(f, rest);
+    }
+    return true;
+}
+
 }  // namespace
 
 bool import_openmesh(const std::string& path, const ImportOptions& options, RawInput& out,
@@ -209,7 +380,10 @@ bool import_openmesh(const std::string& path, const ImportOptions& options, RawI
     (void)options;
     out = RawInput{};
     const std::string ext = lower_extension(path);
-    if (ext == "ply" && !check_ply_header(path, error)) return false;
+    if (ext == "ply" && (!check_ply_tokens(path, error) || !check_ply_header(path, error)))
+        return false;
+    if (ext == "obj" && !check_obj_faces(path, error)) return false;
+    if (ext == "off" && !check_off(path, error)) return false;
     Mesh mesh;
     bool ok = false;
     std::vector<std::string> om_lines;

@@ -1,0 +1,161 @@
+// Regression tests for malformed inputs found by fuzzing the importers
+// (compiler/fuzz/fuzz_import.cpp). Each used to abort, exhaust memory or
+// loop inside OpenMesh 9.0; each must now give a one-line error naming the
+// file and what is wrong.
+#include <cstdint>
+#include <cstring>
+
+#include "import/import_test_util.h"
+
+namespace cwbvh::compiler::test {
+namespace {
+
+bool contains(const std::string& s, const std::string& what) {
+    return s.find(what) != std::string::npos;
+}
+
+// OpenMesh's OBJ reader asserted `!vhandles.empty()` (abort) on a face vertex
+// with a texture index but no position index.
+TEST(Malformed, ObjFaceVertexWithoutPositionIndexIsAnError) {
+    TempDir dir;
+    for (const char* face : {"f /1 2 3\n", "f /1/ 2 3\n", "f 1 2 3\nf\t/2/1 1 3\n"}) {
+        const std::string p = dir.write("slash.obj", std::string("v 0 0 0\nv 1 0 0\nv 0 1 0\n") + face);
+        const auto r = import_files({p});
+        ASSERT_FALSE(r.ok) << face;
+        EXPECT_TRUE(contains(r.error, p + ": OBJ line ")) << r.error;
+        EXPECT_TRUE(contains(r.error, "has no position index")) << r.error;
+        EXPECT_EQ(r.error.find('\n'), std::string::npos);
+    }
+    // Position-less vertex references stay fine when a position is given.
+    const auto ok = import_files({dir.write(
+        "ok.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1 2//1 3/1\n")});
+    ASSERT_TRUE(ok.ok) << ok.error;
+    EXPECT_EQ(ok.scene.triangle_count(), 1u);
+}
+
+// Huge counts in the OFF header: OpenMesh reserved them up front (16 GB for
+// 4e9 faces; the assimp sample OutOfMemory.off asks for ~17 GB of vertices).
+TEST(Malformed, OffHugeHeaderCountsAreAnError) {
+    TempDir dir;
+    const std::string tail = "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    for (const std::string& counts : {std::string("3 4000000000 0"), std::string("4000000000 1 0"),
+                                      std::string("35353523535358 6 0")}) {
+        const std::string p = dir.write("huge.off", "OFF\n" + counts + "\n" + tail);
+        const auto r = import_files({p});
+        ASSERT_FALSE(r.ok) << counts;
+        EXPECT_TRUE(contains(r.error, p + ": OFF header ")) << r.error;
+    }
+}
+
+// A face announcing 4e9 vertices: OpenMesh pushed 4e9 handles after the
+// stream ended (out of memory / practically endless).
+TEST(Malformed, OffFaceWithHugeVertexCountIsAnError) {
+    TempDir dir;
+    const std::string p = dir.write("k.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n4000000000 0 1 2\n");
+    const auto r = import_files({p});
+    ASSERT_FALSE(r.ok);
+    EXPECT_EQ(r.error, p + ": OFF file is truncated or unparsable at face 0 of 1");
+}
+
+// Truncated or unparsable OFF bodies: OpenMesh kept looping over the
+// announced elements with a failed stream (stale indices).
+TEST(Malformed, OffTruncatedOrGarbageBodyIsAnError) {
+    TempDir dir;
+    struct Case {
+        const char* text;
+        const char* error;
+    };
+    const Case cases[] = {
+        {"OFF\n3 2000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "OFF header declares 3 vertices and 2000 faces"},
+        {"OFF\n3 20 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "at face 1 of 20"},
+        {"OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n", "at vertex 3 of 4"},
+        {"OFF\n3 1 0\n0 0 zz\n1 0 0\n0 1 0\n3 0 1 2\n", "at vertex 0 of 3"},
+        {"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n", "at face 0 of 1"},
+        {"OFF\n3\n", "OFF header has missing or invalid"},
+    };
+    for (const Case& c : cases) {
+        const std::string p = dir.write("t.off", c.text);
+        const auto r = import_files({p});
+        ASSERT_FALSE(r.ok) << c.text;
+        EXPECT_TRUE(contains(r.error, p + ": ")) << r.error;
+        EXPECT_TRUE(contains(r.error, c.error)) << r.error;
+    }
+}
+
+std::string u32(uint32_t v) {
+    std::string s(4, '\0');
+    std::memcpy(s.data(), &v, 4);
+    return s;
+}
+std::string f32(float v) {
+    std::string s(4, '\0');
+    std::memcpy(s.data(), &v, 4);
+    return s;
+}
+
+TEST(Malformed, OffBinaryLoadsAndTruncatedOrHugeIsAnError) {
+    TempDir dir;
+    std::string body = u32(3) + u32(1) + u32(0);
+    for (float c : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) body += f32(c);
+    const std::string face = u32(3) + u32(0) + u32(1) + u32(2);
+    const auto ok = import_files({dir.write("b.off", "OFF BINARY\n" + body + face)});
+    ASSERT_TRUE(ok.ok) << ok.error;
+    EXPECT_EQ(ok.scene.triangle_count(), 1u);
+
+    const std::string p = dir.write("t.off", "OFF BINARY\n" + body + face.substr(0, 10));
+    const auto truncated = import_files({p});
+    ASSERT_FALSE(truncated.ok);
+    EXPECT_EQ(truncated.error, p + ": OFF file is truncated or unparsable at face 0 of 1");
+
+    const auto huge = import_files(
+        {dir.write("h.off", "OFF BINARY\n" + u32(3) + u32(0xFFFFFFFFu) + u32(0) + body.substr(12) + face)});
+    ASSERT_FALSE(huge.ok);
+    EXPECT_TRUE(contains(huge.error, "OFF header declares")) << huge.error;
+}
+
+// The OFF variants OpenMesh reads keep loading (normals / colours per line).
+TEST(Malformed, OffVariantsStillLoad) {
+    TempDir dir;
+    const auto noff = import_files({dir.write(
+        "n.off", "NOFF\n3 1 0\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n3 0 1 2\n")});
+    ASSERT_TRUE(noff.ok) << noff.error;
+    EXPECT_EQ(noff.scene.triangle_count(), 1u);
+    const auto coff = import_files({dir.write(
+        "c.off", "COFF\n3 1 0\n0 0 0 255 0 0\n1 0 0 0 255 0\n0 1 0 0 0 255\n3 0 1 2 9 9 9\n")});
+    ASSERT_TRUE(coff.ok) << coff.error;
+    EXPECT_EQ(coff.scene.triangle_count(), 1u);
+    // No trailing newline after the last face.
+    const auto bare = import_files({dir.write("e.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2")});
+    ASSERT_TRUE(bare.ok) << bare.error;
+}
+
+// OpenMesh's PLY header parser is token-based: "1.0\x1a" glued to "element"
+// made the next "property" call elements_.back() on an empty vector (SEGV);
+// a non-numeric version made it loop forever on a failed stream.
+TEST(Malformed, PlyHeaderTokensOpenMeshCannotParseAreAnError) {
+    TempDir dir;
+    const std::string rest =
+        " vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\n"
+        "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    struct Case {
+        std::string text, error;
+    };
+    const Case cases[] = {
+        {"ply\nformat ascii 1.0\x1a" "element" + rest, "PLY header has a property before any element"},
+        {"ply\nformat ascii x\nelement" + rest, "PLY header has no valid 'format"},
+        {"ply\nformat ascii 1.0\nelement vertex zz\nproperty float x\nend_header\n",
+         "PLY header is malformed or has no end_header"},
+    };
+    for (const Case& c : cases) {
+        const std::string p = dir.write("h.ply", c.text);
+        const auto r = import_files({p});
+        ASSERT_FALSE(r.ok) << c.text;
+        EXPECT_EQ(r.error.rfind(p + ": " + c.error, 0), 0u) << r.error;
+    }
+    const auto ok = import_files({dir.write("ok.ply", "ply\nformat ascii 1.0\nelement" + rest)});
+    ASSERT_TRUE(ok.ok) << ok.error;
+    EXPECT_EQ(ok.scene.triangle_count(), 1u);
+}
+
+}  // namespace
+}  // namespace cwbvh::compiler::test
