@@ -27,7 +27,7 @@ constexpr const char* kUsage =
     "  --collapse optimal|greedy  binary->8-wide collapse (default optimal: Ylitie et al. 2017 DP)\n"
     "  --split-alpha A        SBVH spatial-split overlap threshold (default 1e-5)\n"
     "  --max-reference-growth G  SBVH reference budget in [0, 1]: at most (1+G) x triangles references\n"
-    "                         (default 0.2; 1 for the best SAH on scenes of large triangles, ~10% larger files)\n"
+    "                         (default 0.15; 1 for the best SAH on scenes of large triangles, ~10% larger files)\n"
     "  --collapse-cost-prim C triangle cost of the collapse DP, node cost 1 (default 0.3)\n"
     "  --keep-sbvh            also store the binary SBVH (BVH2 section, for the baseline kernel)\n"
     "  --keep-mesh            also store the source mesh (VERT/INDX sections)\n"
