@@ -147,6 +147,20 @@ int64_t expected_faces(const std::string& path, const std::string& ext, RawInput
     return -1;
 }
 
+/// Opens `path` for one of the header checks below (binary mode, so sizes
+/// and offsets are bytes); `size` gets the file's size. False: cannot open.
+bool open_for_check(const std::string& path, std::ifstream& f, uint64_t& size, std::string& error) {
+    f.open(path, std::ios::binary);
+    if (!f) {
+        error = "cannot open file";
+        return false;
+    }
+    f.seekg(0, std::ios::end);
+    size = uint64_t(f.tellg());
+    f.seekg(0);
+    return true;
+}
+
 /// OpenMesh 9.0's PLY header parser (_PLYReader_::can_u_read) reads the
 /// header as whitespace-separated tokens, not lines: it calls
 /// elements_.back() for a "property" before any "element" (a crash on an
@@ -155,11 +169,9 @@ int64_t expected_faces(const std::string& path, const std::string& ext, RawInput
 /// failed (a non-numeric version or count, or end of file). Replay its
 /// token reads and reject the header where either would happen.
 bool check_ply_tokens(const std::string& path, std::string& error) {
-    std::ifstream f(path, std::ios::binary);
-    if (!f) {
-        error = "cannot open file";
-        return false;
-    }
+    std::ifstream f;
+    uint64_t size = 0;
+    if (!open_for_check(path, f, size, error)) return false;
     std::string line, keyword, file_type, a, b, c;
     std::getline(f, line);  // "ply" (OpenMesh refuses anything else before parsing on)
     float version = 0;
@@ -198,14 +210,9 @@ bool check_ply_tokens(const std::string& path, std::string& error) {
 /// properties. Every element takes at least one byte in ASCII and binary
 /// PLY, so require a property per element and sum(counts) <= body size.
 bool check_ply_header(const std::string& path, std::string& error) {
-    std::ifstream f(path, std::ios::binary);
-    if (!f) {
-        error = "cannot open file";
-        return false;
-    }
-    f.seekg(0, std::ios::end);
-    const uint64_t size = uint64_t(f.tellg());
-    f.seekg(0);
+    std::ifstream f;
+    uint64_t size = 0;
+    if (!open_for_check(path, f, size, error)) return false;
     std::string line;
     uint64_t total = 0;
     bool in_element = false, element_has_property = true;
@@ -255,11 +262,9 @@ bool check_ply_header(const std::string& path, std::string& error) {
 /// Tokenisation mirrors OBJReader.cc: getline, trim " \t\r\n", skip empty,
 /// '#' and whitespace-led lines, keyword by >>, face blocks by >>.
 bool check_obj_faces(const std::string& path, std::string& error) {
-    std::ifstream f(path, std::ios::binary);
-    if (!f) {
-        error = "cannot open file";
-        return false;
-    }
+    std::ifstream f;
+    uint64_t size = 0;
+    if (!open_for_check(path, f, size, error)) return false;
     std::string line, keyword, block;
     for (uint64_t number = 1; std::getline(f, line); ++number) {
         const size_t start = line.find_first_not_of(" \t\r\n");
@@ -288,14 +293,9 @@ bool check_obj_faces(const std::string& path, std::string& error) {
 /// stream operations, same order, from its OFFReader.cc) and reject the file
 /// where they would fail: every element the header announces must be there.
 bool check_off(const std::string& path, std::string& error) {
-    std::ifstream f(path, std::ios::binary);
-    if (!f) {
-        error = "cannot open file";
-        return false;
-    }
-    f.seekg(0, std::ios::end);
-    const uint64_t size = uint64_t(f.tellg());
-    f.seekg(0);
+    std::ifstream f;
+    uint64_t size = 0;
+    if (!open_for_check(path, f, size, error)) return false;
     // Header flags as in _OFFReader_::can_u_read: [ST][C][N][4][n]OFF [BINARY].
     std::string first;
     std::getline(f, first);

@@ -39,15 +39,7 @@ TEST(Encode, MetaImaskAndBases) {
     WideBvh wide;
     wide.nodes.resize(3);
     wide.leaf_refs = {0, 1, 2, 3, 4, 5, 6};
-    auto leaf = [&](uint32_t first, uint32_t count) {
-        WideChild c;
-        c.kind = WideChild::kLeaf;
-        c.first_ref = first;
-        c.ref_count = count;
-        for (uint32_t k = 0; k < count; ++k)
-            for (const auto& v : scene.triangle(first + k)) c.box.grow(v);
-        return c;
-    };
+    auto leaf = [&](uint32_t first, uint32_t count) { return wide_test::leaf_of(scene, first, count); };
     wide.nodes[1].slots[0] = leaf(5, 1);
     wide.nodes[1].box = wide.nodes[1].slots[0].box;
     wide.nodes[2].slots[7] = leaf(6, 1);

@@ -15,16 +15,6 @@
 namespace cwbvh::compiler {
 namespace {
 
-WideChild leaf_of(const Scene& scene, uint32_t first, uint32_t count) {
-    WideChild c;
-    c.kind = WideChild::kLeaf;
-    c.first_ref = first;
-    c.ref_count = count;
-    for (uint32_t k = 0; k < count; ++k)
-        for (const auto& v : scene.triangle(first + k)) c.box.grow(v);
-    return c;
-}
-
 TEST(SahReport, HandComputedOnGridAlignedBoxes) {
     // Boxes on the quantization grid decode exactly: root frame [0,255]^3
     // (cell 1), node 1 frame [0,110]^3 (cell 0.5).
@@ -37,11 +27,11 @@ TEST(SahReport, HandComputedOnGridAlignedBoxes) {
     WideBvh wide;
     wide.leaf_refs = {0, 1, 2};
     wide.nodes.resize(2);
-    wide.nodes[1].slots[0] = leaf_of(scene, 1, 1);
-    wide.nodes[1].slots[1] = leaf_of(scene, 2, 1);
+    wide.nodes[1].slots[0] = wide_test::leaf_of(scene, 1, 1);
+    wide.nodes[1].slots[1] = wide_test::leaf_of(scene, 2, 1);
     wide.nodes[1].box = wide.nodes[1].slots[0].box;
     wide.nodes[1].box.grow(wide.nodes[1].slots[1].box);
-    wide.nodes[0].slots[0] = leaf_of(scene, 0, 1);
+    wide.nodes[0].slots[0] = wide_test::leaf_of(scene, 0, 1);
     wide.nodes[0].slots[1].kind = WideChild::kInternal;
     wide.nodes[0].slots[1].node = 1;
     wide.nodes[0].slots[1].box = wide.nodes[1].box;

@@ -10,6 +10,16 @@
 
 namespace cwbvh::wide_test {
 
+compiler::WideChild leaf_of(const Scene& scene, uint32_t first, uint32_t count) {
+    compiler::WideChild c;
+    c.kind = compiler::WideChild::kLeaf;
+    c.first_ref = first;
+    c.ref_count = count;
+    for (uint32_t k = 0; k < count; ++k)
+        for (const auto& v : scene.triangle(first + k)) c.box.grow(v);
+    return c;
+}
+
 Scene random_scene(size_t n, uint32_t seed, float extent, float size) {
     Scene s;
     std::mt19937 rng(seed);

@@ -32,6 +32,10 @@ BinaryBvh build_binary(const Scene& scene, SplitMode mode = SplitMode::kMedian, 
 /// and negative indices accepted). Returns false if the file cannot be read.
 bool read_obj(const std::string& path, Scene& scene);
 
+/// A wide leaf over leaf_refs[first, first + count) whose stored triangle ids
+/// are first.. (the tests' leaf_refs are the identity), box = their union.
+compiler::WideChild leaf_of(const Scene& scene, uint32_t first, uint32_t count);
+
 /// Brute force: enumerates every valid collapse of a (tiny) binary tree —
 /// every labelling of binary nodes as wide internal node / wide leaf /
 /// eliminated — and returns the smallest unnormalised SAH cost
