@@ -69,20 +69,36 @@ bool check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count, std
 }
 
 namespace {
-// Binary leaves under `node`, left first (explicit stack: depth can be large
-// in general, though callers only use this on subtrees of <= 3 references).
+// Binary leaves under `node`, left first. Callers use this on subtrees of
+// <= 3 references (called for most binary nodes by the DP), so the explicit
+// stack lives on the C++ stack; a deeper subtree spills to the heap.
 template <class F>
 void for_each_leaf(const BinaryBvh& binary, uint32_t node, F&& f) {
-    std::vector<uint32_t> stack{node};
-    while (!stack.empty()) {
-        const uint32_t i = stack.back();
-        stack.pop_back();
+    constexpr size_t kInline = 32;
+    uint32_t inline_stack[kInline];
+    std::vector<uint32_t> spill;
+    size_t n = 0;
+    auto push = [&](uint32_t v) {
+        if (n < kInline) inline_stack[n] = v;
+        else spill.push_back(v);
+        ++n;
+    };
+    auto pop = [&]() {
+        --n;
+        if (n < kInline) return inline_stack[n];
+        const uint32_t v = spill.back();
+        spill.pop_back();
+        return v;
+    };
+    push(node);
+    while (n > 0) {
+        const uint32_t i = pop();
         const BinaryNode& b = binary.nodes[i];
         if (b.is_leaf()) {
             f(i);
         } else {
-            stack.push_back(b.child[1]);
-            stack.push_back(b.child[0]);
+            push(b.child[1]);
+            push(b.child[0]);
         }
     }
 }
