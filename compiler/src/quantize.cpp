@@ -116,10 +116,7 @@ bool quantize_node(const Aabb (&boxes)[8], uint8_t used, CwbvhNode& node, std::s
 
 Aabb decode_child_box(const CwbvhNode& node, int slot) {
     Aabb b;
-    for (int a = 0; a < 3; ++a) {
-        b.lo[a] = decode_plane(node.p[a], node.e[a], node.q_lo[a][slot]);
-        b.hi[a] = decode_plane(node.p[a], node.e[a], node.q_hi[a][slot]);
-    }
+    decode_slot_box(node, slot, b.lo.data(), b.hi.data());
     return b;
 }
 

@@ -16,10 +16,7 @@ struct Box {
 
 Box decoded_box(const CwbvhNode& n, int slot) {
     Box b;
-    for (int a = 0; a < 3; ++a) {
-        b.lo[a] = decode_plane(n.p[a], n.e[a], n.q_lo[a][slot]);
-        b.hi[a] = decode_plane(n.p[a], n.e[a], n.q_hi[a][slot]);
-    }
+    decode_slot_box(n, slot, b.lo, b.hi);
     return b;
 }
 

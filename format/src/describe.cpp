@@ -59,10 +59,7 @@ void node_json(std::string& o, const CwbvhNode& n) {
             o += fmt(", \"kind\": \"leaf\", \"first_triangle\": %u, \"count\": %d",
                      n.tri_base + uint32_t(meta_leaf_offset(m)), meta_leaf_count(m));
         float lo[3], hi[3];
-        for (int a = 0; a < 3; ++a) {
-            lo[a] = decode_plane(n.p[a], n.e[a], n.q_lo[a][s]);
-            hi[a] = decode_plane(n.p[a], n.e[a], n.q_hi[a][s]);
-        }
+        decode_slot_box(n, s, lo, hi);
         o += ", \"lo\": " + vec3(lo) + ", \"hi\": " + vec3(hi) + "}";
     }
     o += "]}";

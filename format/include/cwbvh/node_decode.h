@@ -31,6 +31,15 @@ CWBVH_HD CWBVH_INLINE float decode_plane(float p, uint8_t e, uint8_t q) {
 #endif
 }
 
+/// The decoded box of one slot: lo/hi[a] = decode_plane of q_lo/q_hi (the
+/// box the traversal tests; every consumer decodes through this).
+CWBVH_HD CWBVH_INLINE void decode_slot_box(const CwbvhNode& n, int slot, float lo[3], float hi[3]) {
+    for (int a = 0; a < 3; ++a) {
+        lo[a] = decode_plane(n.p[a], n.e[a], n.q_lo[a][slot]);
+        hi[a] = decode_plane(n.p[a], n.e[a], n.q_hi[a][slot]);
+    }
+}
+
 /// Meta byte helpers (spec: "meta byte").
 CWBVH_HD CWBVH_INLINE bool meta_is_empty(uint8_t m) { return m == kMetaEmpty; }
 CWBVH_HD CWBVH_INLINE bool meta_is_internal(uint8_t m) { return (m & 0x1F) >= 24 && (m >> 5) == 1; }
