@@ -6,10 +6,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
-#include <memory>
+#include <new>
 #include <string>
 
-#include <tbb/global_control.h>
 
 #include "cwbvh/compiler/compile.h"
 
@@ -119,11 +118,6 @@ int main(int argc, char** argv) {
     if (options.inputs.empty()) return usage_error("no input files");
     if (options.output.empty()) return usage_error("no output file (-o OUT.cwbvh)");
 
-    std::unique_ptr<tbb::global_control> thread_limit;
-    if (options.threads > 0)
-        thread_limit = std::make_unique<tbb::global_control>(
-            tbb::global_control::max_allowed_parallelism, size_t(options.threads));
-
     const bool tty = !quiet && isatty(STDERR_FILENO);
     PhaseCallback on_phase;
     if (tty) {
@@ -137,7 +131,13 @@ int main(int argc, char** argv) {
 
     CompileStats stats;
     std::string error;
-    if (!compile(options, stats, error, on_phase)) {
+    bool ok = false;
+    try {
+        ok = compile(options, stats, error, on_phase);  // all phases in a task arena of --threads
+    } catch (const std::bad_alloc&) {
+        error = options.inputs.front() + ": out of memory while compiling";
+    }
+    if (!ok) {
         if (tty) std::fputs("\n", stderr);
         std::fprintf(stderr, "cwbvhc: error: %s\n", error.c_str());
         return 1;
