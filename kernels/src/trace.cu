@@ -7,66 +7,39 @@
 
 #include "cwbvh/cuda_check.h"
 #include "cwbvh/trace.h"
-#include "cwbvh/traverse_gpu.h"
+#include "cwbvh/gpu_common.h"
+#include "kernel_table.h"
 
 namespace cwbvh {
-namespace gpu {
-
-template <TriangleTest kTest, HitMode kMode>
-__global__ void __launch_bounds__(kCwbvhBlockThreads) cwbvh_trace_kernel(LaunchParams p) {
-    // [warp][entry][lane]: see gpu_stack.h for the bank-conflict argument.
-    __shared__ PackedEntry s_stack[kCwbvhWarpsPerBlock][kGpuSharedStackEntries][kWarpSize];
-    trace_cwbvh_persistent<kTest, kMode>(p, &s_stack[threadIdx.x / kWarpSize][0][0]);
-}
-
-template <TriangleTest kTest, HitMode kMode>
-__global__ void __launch_bounds__(kBvh2BlockThreads) bvh2_trace_kernel(LaunchParams p) {
-    trace_bvh2_persistent<kTest, kMode>(p);
-}
-
-}  // namespace gpu
-
 namespace {
 
-using KernelFn = void (*)(gpu::LaunchParams);
+using gpu::KernelEntry;
 
-struct KernelEntry {
-    const char* name;
-    KernelFn fn;
-    int block_threads;
-};
+/// Index: structure * 4 + test * 2 + query.
+const KernelEntry& kernel_entry(int k) {
+    const KernelEntry* table = k < gpu::kKernelsPerStructure ? gpu::cwbvh_kernels() : gpu::bvh2_kernels();
+    return table[k % gpu::kKernelsPerStructure];
+}
+constexpr int kKernelCount = 2 * gpu::kKernelsPerStructure;
 
-// Index: structure * 4 + test * 2 + query.
-const KernelEntry kKernels[8] = {
-    {"cwbvh_watertight_closest", gpu::cwbvh_trace_kernel<TriangleTest::kWatertight, HitMode::kClosest>,
-     gpu::kCwbvhBlockThreads},
-    {"cwbvh_watertight_any", gpu::cwbvh_trace_kernel<TriangleTest::kWatertight, HitMode::kAny>,
-     gpu::kCwbvhBlockThreads},
-    {"cwbvh_fast_closest", gpu::cwbvh_trace_kernel<TriangleTest::kFast, HitMode::kClosest>,
-     gpu::kCwbvhBlockThreads},
-    {"cwbvh_fast_any", gpu::cwbvh_trace_kernel<TriangleTest::kFast, HitMode::kAny>, gpu::kCwbvhBlockThreads},
-    {"bvh2_watertight_closest", gpu::bvh2_trace_kernel<TriangleTest::kWatertight, HitMode::kClosest>,
-     gpu::kBvh2BlockThreads},
-    {"bvh2_watertight_any", gpu::bvh2_trace_kernel<TriangleTest::kWatertight, HitMode::kAny>,
-     gpu::kBvh2BlockThreads},
-    {"bvh2_fast_closest", gpu::bvh2_trace_kernel<TriangleTest::kFast, HitMode::kClosest>,
-     gpu::kBvh2BlockThreads},
-    {"bvh2_fast_any", gpu::bvh2_trace_kernel<TriangleTest::kFast, HitMode::kAny>, gpu::kBvh2BlockThreads},
-};
+/// The function a launch runs: the counting variant only when statistics are asked for.
+gpu::KernelFn kernel_fn(int k, bool counting) { return counting ? kernel_entry(k).counting : kernel_entry(k).fn; }
 
-/// Persistent grid: SMs x resident blocks per SM, cached per (device, kernel).
-uint32_t persistent_blocks(int device, int k) {
+/// Persistent grid: SMs x resident blocks per SM, cached per (device, kernel, variant).
+uint32_t persistent_blocks(int device, int k, bool counting) {
     constexpr int kMaxDevices = 64;
     static std::mutex mutex;
-    static uint32_t cache[kMaxDevices][8] = {};
+    static uint32_t cache[kMaxDevices][2 * kKernelCount] = {};
+    const gpu::KernelFn fn = kernel_fn(k, counting);
+    k = 2 * k + (counting ? 1 : 0);
     if (device >= 0 && device < kMaxDevices) {
         std::lock_guard<std::mutex> lock(mutex);
         if (cache[device][k] != 0) return cache[device][k];
     }
     int sms = 0, per_sm = 0;
     CWBVH_CUDA_CHECK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, device));
-    CWBVH_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, kKernels[k].fn,
-                                                                   kKernels[k].block_threads, 0));
+    CWBVH_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, fn,
+                                                                   kernel_entry(k / 2).block_threads, 0));
     const uint32_t blocks = uint32_t(std::max(1, sms * std::max(1, per_sm)));
     if (device >= 0 && device < kMaxDevices) {
         std::lock_guard<std::mutex> lock(mutex);
@@ -82,8 +55,10 @@ void launch(int structure, const DeviceScene& scene, const Ray* d_rays, Hit* d_h
         throw std::invalid_argument("cwbvh::trace_bvh2: the scene has no BVH2 section (compile with --keep-sbvh)");
     if (n != 0 && (d_rays == nullptr || d_hits == nullptr))
         throw std::invalid_argument("cwbvh::trace: null ray or hit pointer");
-    const int k = structure * 4 + (options.test == TriangleTest::kFast ? 2 : 0) + (query == Query::kAny ? 1 : 0);
-    const KernelEntry& kernel = kKernels[k];
+    const int k = structure * gpu::kKernelsPerStructure +
+                  gpu::kernel_slot(options.test, query == Query::kAny ? HitMode::kAny : HitMode::kClosest);
+    const KernelEntry& kernel = kernel_entry(k);
+    const bool counting = options.stats != nullptr;
 
     int device = -1;
     CWBVH_CUDA_CHECK(cudaGetDevice(&device));
@@ -95,8 +70,20 @@ void launch(int structure, const DeviceScene& scene, const Ray* d_rays, Hit* d_h
     const size_t work_bytes = sizeof(gpu::WorkArea) * std::max<size_t>(batches, 1);
     CWBVH_CUDA_CHECK(cudaMallocAsync(reinterpret_cast<void**>(&work), work_bytes, stream));
     uint32_t blocks_used = 0;
+    cudaEvent_t ev[2] = {nullptr, nullptr};
+    auto destroy_events = [&]() {
+        for (cudaEvent_t& e : ev) {
+            if (e) CWBVH_CUDA_WARN(cudaEventDestroy(e));
+            e = nullptr;
+        }
+    };
     try {
         CWBVH_CUDA_CHECK(cudaMemsetAsync(work, 0, work_bytes, stream));
+        if (options.kernel_ms) {
+            CWBVH_CUDA_CHECK(cudaEventCreate(&ev[0]));
+            CWBVH_CUDA_CHECK(cudaEventCreate(&ev[1]));
+            CWBVH_CUDA_CHECK(cudaEventRecord(ev[0], stream));
+        }
         for (size_t b = 0; b < batches; ++b) {
             const size_t first = b * gpu::kMaxRaysPerLaunch;
             const uint32_t count = uint32_t(std::min<uint64_t>(n - first, gpu::kMaxRaysPerLaunch));
@@ -111,12 +98,18 @@ void launch(int structure, const DeviceScene& scene, const Ray* d_rays, Hit* d_h
             p.status = options.d_status ? options.d_status + first : nullptr;
             p.ray_count = count;
             p.work = work + b;
-            uint32_t blocks = options.blocks ? options.blocks : persistent_blocks(device, k);
+            uint32_t blocks = options.blocks ? options.blocks : persistent_blocks(device, k, counting);
             const uint32_t needed = (count + uint32_t(kernel.block_threads) - 1) / uint32_t(kernel.block_threads);
             blocks = std::min(blocks, needed);
             blocks_used = std::max(blocks_used, blocks);
-            kernel.fn<<<blocks, kernel.block_threads, 0, stream>>>(p);
+            kernel_fn(k, counting)<<<blocks, kernel.block_threads, 0, stream>>>(p);
             CWBVH_CUDA_CHECK(cudaGetLastError());
+        }
+        if (options.kernel_ms) {
+            CWBVH_CUDA_CHECK(cudaEventRecord(ev[1], stream));
+            CWBVH_CUDA_CHECK(cudaEventSynchronize(ev[1]));
+            CWBVH_CUDA_CHECK(cudaEventElapsedTime(options.kernel_ms, ev[0], ev[1]));
+            destroy_events();
         }
         if (options.stats) {
             DeviceTraceStats s;
@@ -136,6 +129,7 @@ void launch(int structure, const DeviceScene& scene, const Ray* d_rays, Hit* d_h
             *options.stats = s;
         }
     } catch (...) {
+        destroy_events();
         CWBVH_CUDA_WARN(cudaFreeAsync(work, stream));
         throw;
     }
@@ -156,10 +150,10 @@ void trace_bvh2(const DeviceScene& scene, const Ray* d_rays, Hit* d_hits, size_t
 
 int kernel_info(KernelInfo* out, int max) {
     int count = 0;
-    for (int k = 0; k < 8 && count < max; ++k) {
+    for (int k = 0; k < kKernelCount && count < max; ++k) {
         cudaFuncAttributes a{};
-        CWBVH_CUDA_CHECK(cudaFuncGetAttributes(&a, kKernels[k].fn));
-        out[count++] = KernelInfo{kKernels[k].name, a.numRegs, a.localSizeBytes, a.sharedSizeBytes,
+        CWBVH_CUDA_CHECK(cudaFuncGetAttributes(&a, kernel_entry(k).fn));
+        out[count++] = KernelInfo{kernel_entry(k).name, a.numRegs, a.localSizeBytes, a.sharedSizeBytes,
                                   a.maxThreadsPerBlock, a.ptxVersion, a.binaryVersion};
     }
     return count;
