@@ -71,13 +71,15 @@ TEST(GpuPolicy, LostWorkCounter) {
     EXPECT_EQ(update_lost_work(10, 32), 6);  // a full step pays back credit
 }
 
-TEST(GpuPolicy, PostponeBelowTwentyPercentWithNodeWorkOnly) {
+TEST(GpuPolicy, PostponeBelowTwentyPercentOfActiveLanes) {
     EXPECT_TRUE(should_postpone(1, 32, true));
     EXPECT_TRUE(should_postpone(6, 32, true));    // 18.75%
     EXPECT_FALSE(should_postpone(7, 32, true));   // 21.9%
-    EXPECT_FALSE(should_postpone(1, 32, false));  // nothing else to do: test now
+    EXPECT_TRUE(should_postpone(1, 32, false));   // kernel rule: with or without node work
+    EXPECT_FALSE(should_postpone(1, 32, false, kPostponePercent, true));  // the old rule: test now
     EXPECT_FALSE(should_postpone(1, 5, true));    // 20% exactly is not "fewer than"
     EXPECT_TRUE(should_postpone(1, 6, true));
+    EXPECT_FALSE(should_postpone(32, 32, false));  // everyone wants triangles: nobody waits
 }
 
 TEST(GpuNoDevice, EntryPointsFailCleanly) {

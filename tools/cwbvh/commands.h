@@ -15,6 +15,7 @@ int run_validate(int argc, char** argv);
 int run_rays(int argc, char** argv);
 int run_trace(int argc, char** argv);
 int run_render(int argc, char** argv);
+int run_model(int argc, char** argv);
 
 /// Prints "cwbvh: error: <message>" to stderr; returns `code`.
 int error(int code, const char* message);

@@ -83,20 +83,39 @@ using GpuStack = SharedSpillStack<kGpuSharedStackEntries, kGpuLocalStackEntries>
 inline constexpr int kDynamicFetchNd = 4;
 inline constexpr int kDynamicFetchNw = 16;
 
-CWBVH_HD CWBVH_INLINE int update_lost_work(int lost, int active_lanes) {
-    const int v = lost + (32 - active_lanes) - kDynamicFetchNd;
+/// nd: the free idle lanes (the kernel uses kDynamicFetchNd; the warp model varies it).
+CWBVH_HD CWBVH_INLINE int update_lost_work(int lost, int active_lanes, int nd = kDynamicFetchNd) {
+    const int v = lost + (32 - active_lanes) - nd;
     return v > 0 ? v : 0;
 }
 
 /// Triangle postponing (paper 4.2): a lane that wants to test triangles pushes its
 /// triangle group instead when fewer than kPostponePercent % of the warp's active
-/// lanes want to test triangles, and it still has a node group to traverse
-/// meanwhile (a lane with nothing else to do tests its triangles now, which also
-/// guarantees progress: a postponed group always comes back with no node work).
+/// lanes want to test triangles in this round.
+///
+/// kPostponeOnlyWithNodeWork = false (issue 10): the earlier rule postponed only
+/// lanes that still had node work, so a lane whose node hit only leaves tested its
+/// triangles alone: the CPU warp model (warp_model.h) found 42 % of the triangle
+/// rounds on sponza_dabrovic's diffuse rays had one active lane, 3.5 lanes per round
+/// on average and 84 % of all warp steps in triangle rounds. Postponing regardless
+/// (the paper's loop: push the group whenever the warp's triangle work is a
+/// minority) gives 9.1 lanes per round and 27 % fewer estimated instructions per
+/// ray (bench/results/model/). A lane without node work that postpones pops its
+/// group again at the end of the same iteration and retries in the next one, when
+/// other lanes may want triangles too. Progress: every iteration, each active lane
+/// that does not test triangles takes a node step, pops, or ends, and each ray has
+/// finitely many of those; and when every active lane wants triangles, nobody
+/// postpones. So a postponing lane waits at most for the other lanes' remaining
+/// work, never forever.
 inline constexpr int kPostponePercent = 20;
+inline constexpr bool kPostponeOnlyWithNodeWork = false;
 
-CWBVH_HD CWBVH_INLINE bool should_postpone(int lanes_wanting_triangles, int active_lanes, bool has_node_work) {
-    return has_node_work && 100 * lanes_wanting_triangles < kPostponePercent * active_lanes;
+/// percent, only_with_node_work: the kernel uses the constants above; the warp
+/// model varies them.
+CWBVH_HD CWBVH_INLINE bool should_postpone(int lanes_wanting_triangles, int active_lanes, bool has_node_work,
+                                           int percent = kPostponePercent,
+                                           bool only_with_node_work = kPostponeOnlyWithNodeWork) {
+    return (has_node_work || !only_with_node_work) && 100 * lanes_wanting_triangles < percent * active_lanes;
 }
 
 }  // namespace cwbvh

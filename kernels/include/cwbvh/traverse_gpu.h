@@ -24,6 +24,7 @@
 #include <cstdint>
 
 #include "cwbvh/format.h"
+#include "cwbvh/cwbvh_lane.h"
 #include "cwbvh/gpu_common.h"
 #include "cwbvh/gpu_stack.h"
 #include "cwbvh/node_intersect.h"
@@ -38,38 +39,46 @@ namespace gpu {
 /// 12 KiB of shared stack per block.
 inline constexpr int kCwbvhWarpsPerBlock = 4;
 inline constexpr int kCwbvhBlockThreads = kCwbvhWarpsPerBlock * kWarpSize;
+/// __launch_bounds__ minimum blocks per SM: 6 x 128 threads caps the kernel at
+/// 65536 / 768 = 85 -> 80 registers per thread (37.5 % occupancy on sm_90).
+inline constexpr int kCwbvhMinBlocksPerSm = 6;
 
 // ---------------------------------------------------------------------------
 // CWBVH kernel body
 // ---------------------------------------------------------------------------
 
+/// Rare per-ray outcomes go straight to the global totals (no per-lane counters).
+__device__ __forceinline__ void count_rare(unsigned long long* total) { atomicAdd(total, 1ull); }
+
 /// Called by every thread of the block; blockDim.x == kCwbvhBlockThreads.
-template <TriangleTest kTest, HitMode kMode>
+/// kCount: also count nodes and triangles per lane (the statistics variant; the
+/// production kernel carries no counters). Warp-level control, identical in the
+/// CPU warp model (warp_model.h, which documents it step by step):
+///   refill:  lanes without a ray take the next ones from the global counter (one
+///            atomicAdd per warp);
+///   iterate: every active lane takes one node step; then triangle rounds, one
+///            triangle per wanting lane per round, where a lane postpones its group
+///            when should_postpone(wanting, active, has node work); then lanes
+///            without node work pop; then update_lost_work, and the warp goes back
+///            to refill when the lost work reaches kDynamicFetchNw (rays remaining).
+template <TriangleTest kTest, HitMode kMode, bool kCount>
 __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, PackedEntry* warp_stack_base) {
     const unsigned lane = threadIdx.x & (kWarpSize - 1);
     GpuStack stack(warp_stack_base + lane, kWarpSize);
 
-    // Per-lane ray state; `active` = the lane holds a ray in flight.
     bool active = false;
     uint32_t ray_id = 0;
-    Ray ray{};
-    NodeRay nray{};
-    TriangleIntersector<kTest> tri_test(ray);
-    float tmin = 0.0f, tmax = 0.0f;
-    Hit hit = make_miss();
-    StackEntry node_group{0u, 0u}, tri_group{0u, 0u};
-    uint32_t n_nodes = 0, n_tris = 0, n_invalid = 0, n_overflow = 0, n_bad = 0;
+    CwbvhLane<kTest> l(Ray{{0.0f, 0.0f, 0.0f}, 0.0f, {1.0f, 1.0f, 1.0f}, 0.0f});
+    uint32_t n_nodes = 0, n_tris = 0;
     bool exhausted = false;  // warp-uniform: the global ray counter ran past the end
 
+    // Ending a ray is recorded here and carried out once per iteration, at the end
+    // (one copy of the hit write and of the closest hit's re-test in the code).
+    constexpr uint32_t kRunning = 0xFFFFFFFFu;
+    uint32_t ending = kRunning;  // TraceStatus of a ray that ended in this iteration
     auto finish = [&](TraceStatus status) {
-        store_hit(p.hits + ray_id, hit);
-        if (p.status) p.status[ray_id] = status;
-        n_overflow += status == TraceStatus::kStackOverflow;
-        n_bad += status == TraceStatus::kBadIndex;
+        ending = uint32_t(status);
         active = false;
-        node_group = StackEntry{0u, 0u};
-        tri_group = StackEntry{0u, 0u};
-        stack.clear();
     };
 
     for (;;) {
@@ -85,19 +94,13 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                 const uint32_t id = base + __popc(idle & lanemask_lt(lane));
                 if (id < p.ray_count) {
                     ray_id = id;
-                    ray = load_ray(p.rays + id);
-                    hit = make_miss();
+                    const Ray ray = load_ray(p.rays + id);
                     if (!ray_is_traceable(ray) || p.node_count == 0) {
-                        ++n_invalid;
-                        store_hit(p.hits + id, hit);
+                        store_hit(p.hits + id, make_miss());
                         if (p.status) p.status[id] = TraceStatus::kInvalidRay;
+                        count_rare(&p.work->invalid);
                     } else {
-                        nray = make_node_ray(ray);
-                        tri_test = TriangleIntersector<kTest>(ray);
-                        tmin = ray.tmin;
-                        tmax = ray.tmax;
-                        node_group = StackEntry{0u, 0x80000000u};  // the root, as in traverse.h
-                        tri_group = StackEntry{0u, 0u};
+                        l = CwbvhLane<kTest>(ray);
                         stack.clear();
                         active = true;
                     }
@@ -109,73 +112,56 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
             continue;  // every fetched ray was invalid: fetch again
         }
 
-        // ---- Traversal steps (warp-uniform loop) until too much work is lost.
+        // ---- Traversal iterations (warp-uniform loop) until too much work is lost.
         int lost = 0;
         for (;;) {
             if (active) {
-                if (node_group.hits > 0x00FFFFFFu) {
-                    const int bit = highest_bit(node_group.hits);
-                    const uint32_t base = node_group.base;
-                    const uint32_t imask = node_group.hits & 0xFFu;
-                    node_group.hits &= ~(1u << bit);
-                    const uint32_t slot = (uint32_t(bit) - 24u) ^ nray.octinv;
-                    const uint32_t index = base + uint32_t(__popc(imask & ((1u << slot) - 1u)));
-                    if (node_group.hits > 0x00FFFFFFu && !stack.push(node_group)) {
-                        finish(TraceStatus::kStackOverflow);
-                    } else if (index >= p.node_count) {
-                        finish(TraceStatus::kBadIndex);
-                    } else {
-                        const CwbvhNode node = load_node(p.nodes + index);
-                        ++n_nodes;
-                        const uint32_t hitmask = intersect_node(node, nray, tmin, tmax);
-                        node_group = StackEntry{node.child_base, (hitmask & 0xFF000000u) | node.imask};
-                        tri_group = StackEntry{node.tri_base, hitmask & 0x00FFFFFFu};
-                    }
-                } else {
-                    tri_group = node_group;
-                    node_group = StackEntry{0u, 0u};
+                uint32_t index = 0;
+                const NodeStep step = next_node(l, stack, p.node_count, index);
+                if (step == NodeStep::kVisit) {
+                    if (kCount) ++n_nodes;
+                    visit_node(l, load_node(p.nodes + index));
+                } else if (step == NodeStep::kOverflow) {
+                    finish(TraceStatus::kStackOverflow);
+                } else if (step == NodeStep::kBadIndex) {
+                    finish(TraceStatus::kBadIndex);
                 }
             }
 
-            // Triangle phase: one triangle per lane per round; minority lanes postpone.
+            // Triangle rounds: one triangle per lane per round; minority lanes postpone.
             const int active_lanes = __popc(__ballot_sync(kFullMask, active));
             for (;;) {
-                const bool wants = active && tri_group.hits != 0;
+                const bool wants = active && l.wants_triangles();
                 const unsigned wanting = __ballot_sync(kFullMask, wants);
                 if (wanting == 0) break;
                 if (wants) {
-                    if (should_postpone(__popc(wanting), active_lanes, node_group.hits > 0x00FFFFFFu)) {
-                        if (!stack.push(tri_group)) {
-                            finish(TraceStatus::kStackOverflow);
-                        } else {
-                            tri_group.hits = 0;
-                        }
+                    if (should_postpone(__popc(wanting), active_lanes, l.has_node_work())) {
+                        if (!postpone_triangles(l, stack)) finish(TraceStatus::kStackOverflow);
                     } else {
-                        const int bit = highest_bit(tri_group.hits);
-                        tri_group.hits &= ~(1u << bit);
-                        const uint32_t ti = tri_group.base + uint32_t(bit);
-                        if (ti >= p.tri_count) {
+                        const uint32_t ti = next_triangle(l, p.tri_count);
+                        if (ti == kNoTriangle) {
                             finish(TraceStatus::kBadIndex);
                         } else {
-                            const TriangleRecord tri = load_triangle(p.tris + ti);
-                            ++n_tris;
-                            TriangleHit th;
-                            if (tri_test(tri, tmin, tmax, th)) {
-                                tmax = th.t;
-                                hit = Hit{th.t, th.u, th.v, tri.prim};
-                                if (kMode == HitMode::kAny) finish(TraceStatus::kOk);
-                            }
+                            if (kCount) ++n_tris;
+                            if (test_triangle(l, load_triangle(p.tris + ti), ti) && kMode == HitMode::kAny)
+                                finish(TraceStatus::kOk);
                         }
                     }
                 }
             }
 
-            if (active && node_group.hits <= 0x00FFFFFFu) {
-                if (stack.empty()) {
-                    finish(TraceStatus::kOk);
-                } else {
-                    node_group = stack.pop();
-                }
+            if (active && pop_if_idle(l, stack)) finish(TraceStatus::kOk);
+            if (ending != kRunning) {
+                const TraceStatus status = TraceStatus(ending);
+                Hit h = make_miss();
+                if (status == TraceStatus::kOk && l.hit_tri != kNoTriangle)
+                    h = lane_hit(l, load_triangle(p.tris + l.hit_tri));
+                store_hit(p.hits + ray_id, h);
+                if (p.status) p.status[ray_id] = status;
+                if (status == TraceStatus::kStackOverflow) count_rare(&p.work->overflows);
+                if (status == TraceStatus::kBadIndex) count_rare(&p.work->bad_indices);
+                stack.clear();
+                ending = kRunning;
             }
 
             const unsigned act = __ballot_sync(kFullMask, active);
@@ -185,11 +171,10 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
         }
     }
 
-    warp_add(&p.work->nodes, n_nodes, lane);
-    warp_add(&p.work->triangles, n_tris, lane);
-    warp_add(&p.work->invalid, n_invalid, lane);
-    warp_add(&p.work->overflows, n_overflow, lane);
-    warp_add(&p.work->bad_indices, n_bad, lane);
+    if (kCount) {
+        warp_add(&p.work->nodes, n_nodes, lane);
+        warp_add(&p.work->triangles, n_tris, lane);
+    }
 }
 
 }  // namespace gpu

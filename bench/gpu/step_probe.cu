@@ -1,0 +1,61 @@
+// SASS size probes of the per-lane steps (bench/gpu/step_sizes.sh): each kernel runs
+// one step once, straight-line, so the size of its .text section / 16 bytes (one
+// sm_90 instruction) estimates the instructions one warp issues for that step.
+// The warp model (kernels/include/cwbvh/warp_model.h) weights its phases with them.
+#include "cwbvh/cwbvh_lane.h"
+#include "cwbvh/gpu_common.h"
+#include "cwbvh/traverse_bvh2.h"
+
+namespace cwbvh {
+namespace probe {
+
+/// Empty frame: parameter loads and the final store, subtracted from the others.
+__global__ void probe_empty(const uint32_t* in, uint32_t* out) { out[threadIdx.x] = in[threadIdx.x]; }
+
+/// One CWBVH node step: load + visit_node (8 box tests, hit mask), for rays with
+/// no zero direction component.
+template <TriangleTest kTest>
+__global__ void probe_cwbvh_node(const CwbvhNode* nodes, const Ray* rays, uint32_t* out) {
+    CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x));
+    l.nray.zero_axes = 0;  // the common path: the exact zero-direction filter is compiled out
+    visit_node(l, gpu::load_node(nodes + out[threadIdx.x]));
+    out[threadIdx.x] = l.node_group.hits ^ l.tri_group.hits ^ l.node_group.base ^ l.tri_group.base;
+}
+
+/// One triangle step: load + test.
+template <TriangleTest kTest>
+__global__ void probe_triangle(const TriangleRecord* tris, const Ray* rays, uint32_t* out) {
+    CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x));
+    const uint32_t ti = out[threadIdx.x];
+    test_triangle(l, gpu::load_triangle(tris + ti), ti);
+    out[threadIdx.x] = l.hit_tri ^ __float_as_uint(l.tmax);
+}
+
+/// Per-ray set-up (ray load, NodeRay, triangle-test constants).
+template <TriangleTest kTest>
+__global__ void probe_ray_setup(const Ray* rays, uint32_t* out) {
+    CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x));
+    out[threadIdx.x] = __float_as_uint(l.nray.rcp[0] + l.nray.rcp[1] + l.nray.rcp[2]) ^ l.nray.octinv;
+}
+
+/// One BVH2 node step: 64-byte load, two robust slab tests.
+__global__ void probe_bvh2_node(const Bvh2Node* nodes, const Ray* rays, uint32_t* out) {
+    const Bvh2Ray r = make_bvh2_ray(gpu::load_ray(rays + threadIdx.x));
+    const float4* np = reinterpret_cast<const float4*>(nodes + out[threadIdx.x]);
+    const float4 a = __ldg(np), b = __ldg(np + 1), c = __ldg(np + 2);
+    const int4 d = __ldg(reinterpret_cast<const int4*>(np) + 3);
+    const float lo0[3] = {a.x, a.z, c.x}, hi0[3] = {a.y, a.w, c.y};
+    const float lo1[3] = {b.x, b.z, c.z}, hi1[3] = {b.y, b.w, c.w};
+    float t0 = 0, t1 = 0;
+    const bool h0 = intersect_box_robust(r, lo0, hi0, 0.0f, 1e30f, t0);
+    const bool h1 = intersect_box_robust(r, lo1, hi1, 0.0f, 1e30f, t1);
+    out[threadIdx.x] = (h0 ? d.x : 0) ^ (h1 ? d.y : 0) ^ (t1 < t0);
+}
+
+template __global__ void probe_cwbvh_node<TriangleTest::kWatertight>(const CwbvhNode*, const Ray*, uint32_t*);
+template __global__ void probe_triangle<TriangleTest::kWatertight>(const TriangleRecord*, const Ray*, uint32_t*);
+template __global__ void probe_triangle<TriangleTest::kFast>(const TriangleRecord*, const Ray*, uint32_t*);
+template __global__ void probe_ray_setup<TriangleTest::kWatertight>(const Ray*, uint32_t*);
+
+}  // namespace probe
+}  // namespace cwbvh

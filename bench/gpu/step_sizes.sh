@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# SASS instructions per traversal step, without a GPU or a disassembler: compiles
+# bench/gpu/step_probe.cu to an sm_90 cubin and prints each probe kernel's .text size
+# in 16-byte instructions, minus the empty probe's frame. Code size, not executed
+# instructions: every probe also holds the per-ray set-up (probe_ray_setup: subtract
+# it), and the watertight triangle test includes its double-precision fallback, a
+# branch most tests never take, so its figure is an upper bound (the fast test's
+# is close to the watertight float path).
+# usage: bench/gpu/step_sizes.sh [ARCH, default sm_90]
+set -euo pipefail
+root=$(cd "$(dirname "$0")/../.." && pwd)
+arch=${1:-sm_90}
+nvcc=${CUDACXX:-$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)}
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+"$nvcc" -std=c++17 -O3 -DNDEBUG -arch="$arch" -cubin -I"$root/kernels/include" -I"$root/format/include" \
+  "$root/bench/gpu/step_probe.cu" -o "$tmp/probe.cubin"
+readelf -SW "$tmp/probe.cubin" 2>/dev/null | python3 -c '
+import re, subprocess, sys
+rows = []
+for line in sys.stdin:
+    m = re.search(r"\] (\.text\.\S+)\s+\S+\s+\S+\s+\S+\s+([0-9a-f]+)", line)
+    if m:
+        rows.append((m.group(1)[len(".text."):], int(m.group(2), 16)))
+names = subprocess.run(["c++filt"], input="\n".join(n for n, _ in rows), capture_output=True, text=True).stdout.split("\n")
+empty = next(s for (n, s) in rows if "probe_empty" in n)
+for (n, s), d in zip(rows, names):
+    if "probe_empty" in n:
+        continue
+    print(f"{d:75s} {(s - empty) // 16:5d} instructions")
+'

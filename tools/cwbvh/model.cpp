@@ -1,0 +1,163 @@
+// cwbvh model FILE --rays RAYS [--bvh2] [--any] [--fast] [--warps N] [--no-postpone]
+//                  [--postpone-percent P] [--postpone-with-node-work] [--no-dynamic-fetch] [--nd N] [--nw N]
+//                  [--shared-entries N] [--check]
+// Runs the CPU lock-step warp model of the GPU kernels (warp_model.h) over a ray
+// file and prints SIMT efficiency figures: active lanes per node step and per
+// triangle round, steps per ray, the node/triangle phase mix, spills, refills.
+// --check also traces the rays with the CPU reference and counts disagreements
+// (the model runs the kernel's lane code, so there should be none but ties).
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "args.h"
+#include "commands.h"
+#include "cwbvh/cpu_trace.h"
+#include "cwbvh/loader.h"
+#include "cwbvh/ray_file.h"
+#include "cwbvh/warp_model.h"
+
+namespace cwbvh::tool {
+namespace {
+
+void print_hist(const char* name, const uint64_t (&h)[33]) {
+    uint64_t total = 0;
+    for (uint64_t v : h) total += v;
+    std::printf("%-16s", name);
+    for (int i = 1; i <= 32; ++i) std::printf(" %4.1f", total ? 100.0 * double(h[i]) / double(total) : 0.0);
+    std::printf("   (%% of steps with 1..32 lanes)\n");
+}
+
+}  // namespace
+
+int run_model(int argc, char** argv) {
+    const char* usage =
+        "usage: cwbvh model FILE --rays RAYS [--bvh2] [--any] [--fast] [--warps N] [--no-postpone] "
+        "[--postpone-percent P] [--postpone-with-node-work] [--no-dynamic-fetch] [--nd N] [--nw N] [--shared-entries N] [--check]";
+    const char* path = nullptr;
+    const char* rays_path = nullptr;
+    bool bvh2 = false, check = false;
+    WarpModelOptions o;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        uint32_t v = 0;
+        auto num = [&](uint32_t lo, uint32_t hi) { return parse_u32(option_value(argc, argv, i), lo, hi, v); };
+        if (a == "--rays") {
+            if (!(rays_path = option_value(argc, argv, i))) return error(kExitUsage, "model: --rays needs a path");
+        } else if (a == "--bvh2") {
+            bvh2 = true;
+        } else if (a == "--any") {
+            o.mode = HitMode::kAny;
+        } else if (a == "--fast") {
+            o.test = TriangleTest::kFast;
+        } else if (a == "--check") {
+            check = true;
+        } else if (a == "--no-postpone") {
+            o.postpone = false;
+        } else if (a == "--postpone-with-node-work") {
+            o.postpone_needs_node_work = true;
+        } else if (a == "--no-dynamic-fetch") {
+            o.dynamic_fetch = false;
+        } else if (a == "--warps") {
+            if (!num(1, 1u << 20)) return error(kExitUsage, "model: --warps needs an integer in [1, 1048576]");
+            o.warps = v;
+        } else if (a == "--postpone-percent") {
+            if (!num(0, 100)) return error(kExitUsage, "model: --postpone-percent needs an integer in [0, 100]");
+            o.postpone_percent = int(v);
+        } else if (a == "--nd") {
+            if (!num(0, 32)) return error(kExitUsage, "model: --nd needs an integer in [0, 32]");
+            o.fetch_nd = int(v);
+        } else if (a == "--nw") {
+            if (!num(1, 1024)) return error(kExitUsage, "model: --nw needs an integer in [1, 1024]");
+            o.fetch_nw = int(v);
+        } else if (a == "--shared-entries") {
+            if (!num(0, 64)) return error(kExitUsage, "model: --shared-entries needs an integer in [0, 64]");
+            o.shared_stack_entries = int(v);
+        } else if (a.size() > 1 && a[0] == '-') {
+            return error(kExitUsage, ("model: unknown option " + a).c_str());
+        } else if (path) {
+            return error(kExitUsage, "model: expects exactly one FILE");
+        } else {
+            path = argv[i];
+        }
+    }
+    if (!path || !rays_path) return error(kExitUsage, usage);
+
+    const uint32_t mask = kMaskNodes | kMaskTriangles | (bvh2 ? kMaskBvh2 : 0u);
+    auto file = File::open(path, {true, mask});
+    if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
+    if (bvh2 && file->bvh2().empty())
+        return error(kExitBadInput, (std::string(path) + ": no BVH2 section (compile with --keep-sbvh)").c_str());
+    std::vector<Ray> rays;
+    std::string err;
+    if (!read_ray_file(rays_path, rays, err)) return error(kExitBadInput, err.c_str());
+
+    std::vector<Hit> hits(rays.size());
+    const auto tris = file->triangles();
+    WarpModelStats s;
+    if (bvh2) {
+        const auto n = file->bvh2();
+        s = model_bvh2_2009_warps(n.data(), n.size(), tris.data(), tris.size(), rays.data(), hits.data(), rays.size(),
+                                  o);
+    } else {
+        const auto n = file->nodes();
+        s = model_cwbvh_warps(n.data(), n.size(), tris.data(), tris.size(), rays.data(), hits.data(), rays.size(), o);
+    }
+
+    const double n = double(s.rays ? s.rays : 1);
+    std::printf("model            %s (%s, %s), %u warps, postpone %s (%d%%), fetch %s (Nd %d, Nw %d)\n",
+                bvh2 ? "bvh2 2009 while-while" : "cwbvh", o.mode == HitMode::kAny ? "any-hit" : "closest-hit",
+                o.test == TriangleTest::kFast ? "fast test" : "watertight test", o.warps,
+                o.postpone && !bvh2 ? "on" : "off", o.postpone_percent,
+                bvh2 ? "whole warp" : (o.dynamic_fetch ? "dynamic" : "whole warp"), o.fetch_nd, o.fetch_nw);
+    std::printf("rays             %llu (hits %llu, invalid %llu)\n", (unsigned long long)s.rays,
+                (unsigned long long)s.hits, (unsigned long long)s.invalid_rays);
+    std::printf("nodes/ray        %.2f\n", double(s.lane_node_steps) / n);
+    std::printf("triangles/ray    %.2f\n", double(s.lane_tri_tests) / n);
+    std::printf("lanes/node step  %.2f\n", s.lanes_per_node_step());
+    std::printf("lanes/tri step   %.2f\n", s.lanes_per_tri_step());
+    std::printf("lanes/iteration  %.2f (lanes holding a ray)\n", s.lanes_per_iteration());
+    std::printf("lanes/instr est  %.2f (weights node %.0f, tri %.0f, control %.0f)\n",
+                s.estimated_lanes_per_instruction, bvh2 ? o.bvh2_node_instructions : o.node_instructions,
+                o.tri_instructions, o.control_instructions);
+    std::printf("instr/ray est    %.0f (warp instructions issued per ray, same weights)\n", s.instructions_per_ray());
+    std::printf("warp steps/ray   %.2f (x32 lanes; node %llu, triangle %llu: %.1f%% triangle)\n", s.steps_per_ray(),
+                (unsigned long long)s.warp_node_steps, (unsigned long long)s.warp_tri_steps,
+                100.0 * s.tri_step_share());
+    std::printf("refills          %llu (%.2f per 32 rays)\n", (unsigned long long)s.refills,
+                32.0 * double(s.refills) / n);
+    std::printf("postponed groups %llu (%.3f per ray)\n", (unsigned long long)s.postponed, double(s.postponed) / n);
+    std::printf("spilled pushes   %llu (%.4f per ray), deepest stack %llu\n", (unsigned long long)s.spilled_pushes,
+                double(s.spilled_pushes) / n, (unsigned long long)s.max_stack);
+    if (s.stack_overflows || s.bad_indices)
+        std::printf("stack overflows  %llu\nbad indices      %llu\n", (unsigned long long)s.stack_overflows,
+                    (unsigned long long)s.bad_indices);
+    print_hist("node lanes", s.node_lane_hist);
+    print_hist("tri lanes", s.tri_lane_hist);
+
+    if (check) {
+        std::vector<Hit> ref(rays.size());
+        CpuTraceOptions co;
+        co.mode = o.mode;
+        co.test = o.test;
+        const auto nodes = file->nodes();
+        trace_cwbvh_cpu(nodes.data(), nodes.size(), tris.data(), tris.size(), rays.data(), ref.data(), rays.size(),
+                        co);
+        uint64_t bad = 0, ties = 0;
+        for (size_t i = 0; i < rays.size(); ++i) {
+            const bool hm = hits[i].prim != kMissPrim, hr = ref[i].prim != kMissPrim;
+            if (hm != hr || (hm && o.mode == HitMode::kClosest && hits[i].t != ref[i].t)) {
+                ++bad;
+            } else if (hm && o.mode == HitMode::kClosest && hits[i].prim != ref[i].prim) {
+                ++ties;
+            }
+        }
+        std::printf("check            %llu disagreements with the CPU reference, %llu ties (same t, other triangle)\n",
+                    (unsigned long long)bad, (unsigned long long)ties);
+        if (bad) return kExitBadInput;
+    }
+    return (s.stack_overflows || s.bad_indices) ? kExitBadInput : kExitOk;
+}
+
+}  // namespace cwbvh::tool
