@@ -1,6 +1,6 @@
 // cwbvh model FILE --rays RAYS [--bvh2] [--any] [--fast] [--warps N] [--no-postpone]
 //                  [--postpone-percent P] [--postpone-with-node-work] [--no-dynamic-fetch] [--nd N] [--nw N]
-//                  [--shared-entries N] [--check]
+//                  [--shared-entries N] [--node-instructions N] [--tri-instructions N] [--check]
 // Runs the CPU lock-step warp model of the GPU kernels (warp_model.h) over a ray
 // file and prints SIMT efficiency figures: active lanes per node step and per
 // triangle round, steps per ray, the node/triangle phase mix, spills, refills.
@@ -34,7 +34,7 @@ void print_hist(const char* name, const uint64_t (&h)[33]) {
 int run_model(int argc, char** argv) {
     const char* usage =
         "usage: cwbvh model FILE --rays RAYS [--bvh2] [--any] [--fast] [--warps N] [--no-postpone] "
-        "[--postpone-percent P] [--postpone-with-node-work] [--no-dynamic-fetch] [--nd N] [--nw N] [--shared-entries N] [--check]";
+        "[--postpone-percent P] [--postpone-with-node-work] [--no-dynamic-fetch] [--nd N] [--nw N] [--shared-entries N] [--node-instructions N] [--tri-instructions N] [--check]";
     const char* path = nullptr;
     const char* rays_path = nullptr;
     bool bvh2 = false, check = false;
@@ -71,6 +71,12 @@ int run_model(int argc, char** argv) {
         } else if (a == "--nw") {
             if (!num(1, 1024)) return error(kExitUsage, "model: --nw needs an integer in [1, 1024]");
             o.fetch_nw = int(v);
+        } else if (a == "--node-instructions") {
+            if (!num(1, 100000)) return error(kExitUsage, "model: --node-instructions needs an integer in [1, 100000]");
+            o.node_instructions = o.bvh2_node_instructions = double(v);
+        } else if (a == "--tri-instructions") {
+            if (!num(1, 100000)) return error(kExitUsage, "model: --tri-instructions needs an integer in [1, 100000]");
+            o.tri_instructions = double(v);
         } else if (a == "--shared-entries") {
             if (!num(0, 64)) return error(kExitUsage, "model: --shared-entries needs an integer in [0, 64]");
             o.shared_stack_entries = int(v);

@@ -193,15 +193,28 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_scalar(const CwbvhNode& n, const N
         const float tfz = plane_byte(far_w[4], far_w[5], s) * adj_idir[2] + orig_far[2];
         const float tnear = max_f(max_f(tnx, tny), max_f(tnz, tmin));
         const float tfar = min_f(min_f(tfx, tfy), min_f(tfz, tmax));
-        const uint32_t meta = ((s < 4 ? meta_w[0] : meta_w[1]) >> (8 * (s & 3))) & 0xFFu;
-        slots |= uint32_t(tnear <= tfar && meta != kMetaEmpty) << s;
+        // Empty slots need no test here: their meta byte is 0, so they add no bits below.
+        slots |= uint32_t(tnear <= tfar) << s;
     }
     if (r.zero_axes != 0 && slots != 0) slots = zero_axes_filter(n, r, slots);
+    // meta_bits for four slots at once, byte-parallel in a word (no carry crosses a
+    // byte: bit 4 of m & (m << 1) comes from bits 3 and 4 of the same byte, and each
+    // byte of `inner` is 0 or 1 before the multiplication by 0x1F).
+    uint32_t bits_w[2], index_w[2];
+    const uint32_t octinv4 = r.octinv * 0x01010101u;
+    CWBVH_UNROLL
+    for (int h = 0; h < 2; ++h) {
+        const uint32_t m = meta_w[h];
+        const uint32_t inner = ((m & (m << 1)) >> 4) & 0x01010101u;
+        index_w[h] = (m ^ (octinv4 & (inner * 0x1Fu))) & 0x1F1F1F1Fu;
+        bits_w[h] = (m >> 5) & 0x07070707u;
+    }
     uint32_t hitmask = 0;
     CWBVH_UNROLL
     for (int s = 0; s < kWidth; ++s) {
-        const uint32_t meta = ((s < 4 ? meta_w[0] : meta_w[1]) >> (8 * (s & 3))) & 0xFFu;
-        if ((slots >> s) & 1u) hitmask |= meta_bits(meta, r.octinv);
+        const uint32_t bits = (bits_w[s >> 2] >> (8 * (s & 3))) & 0x7u;
+        const uint32_t index = (index_w[s >> 2] >> (8 * (s & 3))) & 0x1Fu;
+        hitmask |= (((slots >> s) & 1u) ? bits : 0u) << index;
     }
     return hitmask;
 }

@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# Warp-model sweep (no GPU needed): for each scene and view, generates primary and
+# diffuse rays with `cwbvh rays` and runs `cwbvh model` for the CWBVH kernel with the
+# postponing rule before issue 10 (--postpone-with-node-work), with today's rule,
+# and the BVH2 2009 kernel; prints one markdown table row per run.
+# usage: bench/model_sweep.sh OUT.md [WIDTH]   (env CWBVH=path/to/cwbvh, CWBVHC=path/to/cwbvhc)
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+out=$1
+w=${2:-1024}
+cwbvh=${CWBVH:-$root/build/bin/cwbvh}
+cwbvhc=${CWBVHC:-$root/build/bin/cwbvhc}
+scenes=${CWBVH_SHARED_SCENES:-$root/../shared/scenes}
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+# scene file | view name | camera ("" = default camera)
+views=(
+  "sponza_dabrovic.obj|inside|-12,3,0,10,5,0,70"
+  "oa_oacmpctf3.glb|inside|0,-1000,500,0,1000,500,80"
+  "bunny.obj|default|"
+  "fg_cg57.glb|default|"
+  "dragon_res2.glb|default|"
+)
+{
+  echo "| scene | view | rays | variant | rays | nodes/ray | tris/ray | lanes/node step | lanes/tri step | tri share of steps | est. lanes/instr | est. instr/ray |"
+  echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
+} > "$out"
+for v in "${views[@]}"; do
+  IFS='|' read -r file view cam <<< "$v"
+  name=${file%.*}
+  [[ -f "$scenes/$file" ]] || { echo "skip $file" >&2; continue; }
+  "$cwbvhc" "$scenes/$file" -o "$tmp/$name.cwbvh" --keep-sbvh --quiet
+  camarg=()
+  [[ -n "$cam" ]] && camarg=(--camera "$cam")
+  for kind in primary d1 d4; do
+    case $kind in
+      primary) "$cwbvh" rays "$tmp/$name.cwbvh" --primary "${camarg[@]}" --width "$w" --height "$w" -o "$tmp/r" >/dev/null ;;
+      d1) "$cwbvh" rays "$tmp/$name.cwbvh" --diffuse --bounce 1 "${camarg[@]}" --width "$w" --height "$w" -o "$tmp/r" >/dev/null ;;
+      d4) "$cwbvh" rays "$tmp/$name.cwbvh" --diffuse --bounce 4 "${camarg[@]}" --width "$w" --height "$w" -o "$tmp/r" >/dev/null ;;
+    esac
+    for variant in "cwbvh old postponing|--postpone-with-node-work" "cwbvh|" "bvh2 2009|--bvh2"; do
+      label=${variant%%|*}
+      flags=${variant#*|}
+      # shellcheck disable=SC2086
+      "$cwbvh" model "$tmp/$name.cwbvh" --rays "$tmp/r" $flags > "$tmp/m.txt"
+      get() { python3 -c 'import sys; k = sys.argv[1]; print(next((l[len(k):].split()[0] for l in open(sys.argv[2]) if l.startswith(k)), ""))' "$1" "$tmp/m.txt"; }
+      share=$(grep '^warp steps/ray' "$tmp/m.txt" | sed 's/.*: \([0-9.]*\)% triangle.*/\1/')
+      echo "| $name | $view | $kind | $label | $(get rays) | $(get nodes/ray) | $(get triangles/ray) | $(get 'lanes/node step') | $(get 'lanes/tri step') | $share% | $(get 'lanes/instr est') | $(get 'instr/ray est') |" >> "$out"
+    done
+  done
+done
+cat "$out"

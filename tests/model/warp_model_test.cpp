@@ -1,0 +1,207 @@
+// The CPU warp model (warp_model.h) runs the CWBVH kernel's lane code (cwbvh_lane.h)
+// under the kernel's warp rules. These tests check that it answers every ray exactly
+// as the CPU reference does, under every policy setting, and that its statistics
+// are consistent: a model that drifted from the traversal would be tuning fiction.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <vector>
+
+#include "cwbvh/cpu_trace.h"
+#include "cwbvh/ray_gen.h"
+#include "cwbvh/synthetic.h"
+#include "cwbvh/warp_model.h"
+
+namespace cwbvh {
+namespace {
+
+struct Fixture {
+    SceneData scene;
+    std::vector<Ray> rays;
+};
+
+/// A 20k-triangle synthetic scene with camera rays and diffuse bounce-1 rays, plus a
+/// few untraceable rays (answered with a miss without touching the tree).
+const Fixture& fixture() {
+    static const Fixture f = [] {
+        Fixture x;
+        SyntheticOptions so;
+        so.triangles = 20000;
+        x.scene = make_synthetic_scene(so);
+        const std::vector<Ray> primary = camera_rays(default_camera(x.scene.bounds), 96, 96);
+        const DiffuseRays d = diffuse_rays(x.scene.nodes.data(), x.scene.nodes.size(), x.scene.triangles.data(),
+                                           x.scene.triangles.size(), primary, 1, 7, 1);
+        x.rays = primary;
+        x.rays.insert(x.rays.end(), d.rays.begin(), d.rays.end());
+        Ray bad = primary[0];
+        bad.dir[0] = bad.dir[1] = bad.dir[2] = 0.0f;  // zero direction: not traceable
+        x.rays.push_back(bad);
+        Ray axis = primary[primary.size() / 2];
+        axis.dir[0] = 0.0f;  // a zero component: the exact slab filter path
+        x.rays.push_back(axis);
+        return x;
+    }();
+    return f;
+}
+
+std::vector<Hit> reference(const Fixture& f, HitMode mode, TriangleTest test) {
+    std::vector<Hit> ref(f.rays.size());
+    CpuTraceOptions o;
+    o.mode = mode;
+    o.test = test;
+    o.threads = 1;
+    trace_cwbvh_cpu(f.scene.nodes.data(), f.scene.nodes.size(), f.scene.triangles.data(), f.scene.triangles.size(),
+                    f.rays.data(), ref.data(), f.rays.size(), o);
+    return ref;
+}
+
+/// Closest hit: same t bit for bit and the same triangle, or another triangle at
+/// exactly the same t (postponing may change which of two equal hits is last).
+void expect_same_hits(const std::vector<Hit>& got, const std::vector<Hit>& ref, HitMode mode) {
+    ASSERT_EQ(got.size(), ref.size());
+    size_t bad = 0;
+    for (size_t i = 0; i < ref.size(); ++i) {
+        const bool gh = got[i].prim != kMissPrim, rh = ref[i].prim != kMissPrim;
+        if (gh != rh || (mode == HitMode::kClosest && gh && got[i].t != ref[i].t)) {
+            if (++bad <= 3) ADD_FAILURE() << "ray " << i << ": model prim " << got[i].prim << " t " << got[i].t
+                                          << ", reference prim " << ref[i].prim << " t " << ref[i].t;
+        }
+        if (mode == HitMode::kClosest && gh && rh && got[i].prim == ref[i].prim) {
+            EXPECT_EQ(got[i].u, ref[i].u) << "ray " << i << ": u is recomputed from the hit triangle, bit for bit";
+            EXPECT_EQ(got[i].v, ref[i].v) << "ray " << i;
+        }
+    }
+    EXPECT_EQ(bad, 0u);
+}
+
+WarpModelStats run(const Fixture& f, const WarpModelOptions& o, std::vector<Hit>& hits) {
+    hits.assign(f.rays.size(), Hit{-1.0f, -1.0f, -1.0f, 12345u});
+    return model_cwbvh_warps(f.scene.nodes.data(), f.scene.nodes.size(), f.scene.triangles.data(),
+                             f.scene.triangles.size(), f.rays.data(), hits.data(), f.rays.size(), o);
+}
+
+TEST(WarpModel, CwbvhHitsEqualTheReferenceForEveryQueryAndTest) {
+    const Fixture& f = fixture();
+    for (HitMode mode : {HitMode::kClosest, HitMode::kAny}) {
+        for (TriangleTest test : {TriangleTest::kWatertight, TriangleTest::kFast}) {
+            SCOPED_TRACE(testing::Message() << "mode " << int(mode) << " test " << int(test));
+            WarpModelOptions o;
+            o.mode = mode;
+            o.test = test;
+            o.warps = 8;
+            std::vector<Hit> hits;
+            const WarpModelStats s = run(f, o, hits);
+            expect_same_hits(hits, reference(f, mode, test), mode);
+            EXPECT_EQ(s.rays, f.rays.size());
+            EXPECT_EQ(s.invalid_rays, 1u);
+            EXPECT_EQ(s.stack_overflows + s.bad_indices, 0u);
+        }
+    }
+}
+
+TEST(WarpModel, PoliciesChangeTheScheduleNotTheAnswers) {
+    const Fixture& f = fixture();
+    const std::vector<Hit> ref = reference(f, HitMode::kClosest, TriangleTest::kWatertight);
+    struct Case {
+        bool postpone, with_node_work, dynamic;
+        int percent, nd, nw, shared;
+        uint32_t warps;
+    };
+    const Case cases[] = {
+        {false, false, true, 20, 4, 16, 12, 8},  {true, true, true, 20, 4, 16, 12, 8},
+        {true, false, true, 100, 4, 16, 12, 3},  {true, false, false, 20, 4, 16, 0, 1},
+        {true, false, true, 35, 0, 1, 2, 64},    {true, false, true, 20, 32, 1024, 12, 1000000},
+    };
+    uint64_t postponed_always = 0, postponed_node_work = 0;
+    for (const Case& c : cases) {
+        WarpModelOptions o;
+        o.postpone = c.postpone;
+        o.postpone_needs_node_work = c.with_node_work;
+        o.dynamic_fetch = c.dynamic;
+        o.postpone_percent = c.percent;
+        o.fetch_nd = c.nd;
+        o.fetch_nw = c.nw;
+        o.shared_stack_entries = c.shared;
+        o.warps = c.warps;
+        std::vector<Hit> hits;
+        const WarpModelStats s = run(f, o, hits);
+        SCOPED_TRACE(testing::Message() << "postpone " << c.postpone << " percent " << c.percent << " warps "
+                                        << c.warps);
+        expect_same_hits(hits, ref, HitMode::kClosest);
+        if (!c.postpone) {
+            EXPECT_EQ(s.postponed, 0u);
+        }
+        if (c.postpone && c.percent == 20 && !c.with_node_work && c.dynamic) postponed_always = s.postponed;
+        if (c.postpone && c.with_node_work) postponed_node_work = s.postponed;
+        if (c.shared == 0) {
+            EXPECT_GT(s.spilled_pushes, 0u) << "with no shared entries every push spills";
+        }
+    }
+    EXPECT_GT(postponed_always, postponed_node_work) << "the kernel's rule postpones lanes without node work too";
+}
+
+TEST(WarpModel, StatisticsAreConsistent) {
+    const Fixture& f = fixture();
+    WarpModelOptions o;
+    o.warps = 16;
+    o.postpone = false;  // postponing reorders triangle tests, which moves tmax and the work a little
+    std::vector<Hit> hits;
+    const WarpModelStats s = run(f, o, hits);
+    std::vector<TraceCounters> counters(f.rays.size());
+    std::vector<Hit> ref(f.rays.size());
+    CpuTraceOptions co;
+    co.threads = 1;
+    co.counters = counters.data();
+    const CpuTraceStats cs = trace_cwbvh_cpu(f.scene.nodes.data(), f.scene.nodes.size(), f.scene.triangles.data(),
+                                             f.scene.triangles.size(), f.rays.data(), ref.data(), f.rays.size(), co);
+    // Without postponing each lane runs traverse.h's sequence of steps: the same
+    // work per ray as the reference.
+    EXPECT_EQ(s.lane_node_steps, cs.nodes_visited);
+    EXPECT_EQ(s.lane_tri_tests, cs.triangles_tested);
+    EXPECT_EQ(s.hits, cs.hits);
+    uint64_t node_steps = 0, tri_steps = 0, node_lanes = 0, tri_lanes = 0;
+    EXPECT_EQ(s.node_lane_hist[0], 0u);
+    EXPECT_EQ(s.tri_lane_hist[0], 0u);
+    for (int i = 0; i <= 32; ++i) {
+        node_steps += s.node_lane_hist[i];
+        tri_steps += s.tri_lane_hist[i];
+        node_lanes += uint64_t(i) * s.node_lane_hist[i];
+        tri_lanes += uint64_t(i) * s.tri_lane_hist[i];
+    }
+    EXPECT_EQ(node_steps, s.warp_node_steps);
+    EXPECT_EQ(tri_steps, s.warp_tri_steps);
+    EXPECT_EQ(node_lanes, s.lane_node_steps);
+    EXPECT_EQ(tri_lanes, s.lane_tri_tests);
+    EXPECT_GE(s.lanes_per_node_step(), 1.0);
+    EXPECT_LE(s.lanes_per_node_step(), 32.0);
+    EXPECT_GT(s.estimated_lanes_per_instruction, 0.0);
+    EXPECT_LE(s.estimated_lanes_per_instruction, 32.0);
+    EXPECT_GT(s.refills, 0u);
+}
+
+TEST(WarpModel, Bvh2ModelHitsEqualTheBvh2Reference) {
+    const Fixture& f = fixture();
+    ASSERT_FALSE(f.scene.bvh2.empty());
+    for (HitMode mode : {HitMode::kClosest, HitMode::kAny}) {
+        std::vector<Hit> ref(f.rays.size()), hits(f.rays.size());
+        CpuTraceOptions co;
+        co.mode = mode;
+        co.threads = 1;
+        const CpuTraceStats cs = trace_bvh2_cpu(f.scene.bvh2.data(), f.scene.bvh2.size(), f.scene.triangles.data(),
+                                                f.scene.triangles.size(), f.rays.data(), ref.data(), f.rays.size(), co);
+        WarpModelOptions o;
+        o.mode = mode;
+        o.warps = 4;
+        const WarpModelStats s =
+            model_bvh2_2009_warps(f.scene.bvh2.data(), f.scene.bvh2.size(), f.scene.triangles.data(),
+                                  f.scene.triangles.size(), f.rays.data(), hits.data(), f.rays.size(), o);
+        expect_same_hits(hits, ref, mode);
+        if (mode == HitMode::kClosest) {
+            EXPECT_EQ(s.lane_node_steps, cs.nodes_visited);
+            EXPECT_EQ(s.lane_tri_tests, cs.triangles_tested);
+        }
+    }
+}
+
+}  // namespace
+}  // namespace cwbvh
