@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# Registers, stack and spills of every GPU kernel, without a GPU: compiles the kernel
+# translation units with `ptxas -v` for one architecture and writes the report to
+# bench/results/ptxas-<arch>.txt (or the path given), one summary line per kernel
+# after the raw ptxas output. Issue 10's budget: every production CWBVH kernel at
+# most 80 registers on sm_90 with no spill stores.
+# usage: scripts/ptxas-report.sh [ARCH (default sm_90)] [OUT]
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+arch=${1:-sm_90}
+out=${2:-$root/bench/results/ptxas-$arch.txt}
+nvcc=${CUDACXX:-$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)}
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+{
+  echo "# $("$nvcc" --version | tail -2 | head -1)"
+  echo "# -std=c++17 -O3 -DNDEBUG -arch=$arch -Xptxas -v; commit $(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet -- kernels format || echo '+local changes')"
+  for cu in kernels_cwbvh kernels_bvh2; do
+    "$nvcc" -std=c++17 -O3 -DNDEBUG -arch="$arch" -Xptxas -v -I"$root/kernels/include" -I"$root/format/include" \
+      -I"$root/loader/include" -c "$root/kernels/src/$cu.cu" -o "$tmp/$cu.o" 2>&1 | c++filt > "$tmp/$cu.txt"
+  done
+  echo "#"
+  echo "# kernel (TriangleTest 0 watertight / 1 fast, HitMode 0 closest / 1 any, counting variant true/false): registers, spill stores/loads, stack frame"
+  cat "$tmp"/kernels_*.txt | python3 -c '
+import re, sys
+name = None
+for line in sys.stdin:
+    m = re.search(r"Function properties for (?:void )?(.+?)\((?:cwbvh::gpu::)?LaunchParams\)\s*$", line)
+    if m:
+        name = m.group(1).replace("cwbvh::gpu::", "").replace("cwbvh::TriangleTest", "test").replace("cwbvh::HitMode", "mode")
+    m = re.search(r"(\d+) bytes stack frame, (\d+) bytes spill stores, (\d+) bytes spill loads", line)
+    if m and name:
+        frame, st, ld = m.groups()
+    m = re.search(r"Used (\d+) registers", line)
+    if m and name:
+        print(f"# {name:70s} {m.group(1):>4s} regs  spill {st}/{ld} B  stack {frame} B")
+        name = None
+'
+  echo "#"
+  cat "$tmp"/kernels_*.txt
+} > "$out"
+grep '^# ' "$out" | sed -n '4,$p'
