@@ -7,6 +7,10 @@ scenes, then CSV/JSON results and PNG plots in one folder.
 Builds nothing: expects the binaries in BUILD/bin (default: build/, then build-bench/).
 Every timing is the median of --repeats runs (single-scene figures are ratios against
 a peer measured in the same run). No timing is asserted anywhere.
+
+Rays of the traffic, error and CPU-throughput benchmarks: the scene's first view in the
+view catalog (--views, else $CWBVH_VIEWS, else views/catalog.txt), passed as --camera;
+the default camera only for a scene not in the catalog.
 """
 import argparse
 import csv
@@ -39,6 +43,7 @@ DEFAULT_SCENES = [
     ("dragon", "dragon.glb"),
 ]
 QUICK_SCENES = ["bunny", "dragon_res4"]
+DEFAULT_VIEWS = os.environ.get("CWBVH_VIEWS") or os.path.join(ROOT, "views", "catalog.txt")
 
 BUILD_CONFIGS = [("sbvh", "optimal"), ("sbvh", "greedy"), ("embree", "optimal"), ("embree", "greedy")]
 
@@ -55,6 +60,27 @@ def resolve_scene(item):
     if os.path.exists(item):
         return os.path.splitext(os.path.basename(item))[0], os.path.abspath(item)
     return item, None
+
+
+def load_views(path):
+    """The view catalog (spec/rays.md, "View catalog"): {scene: [(view, camera), ...]} in file
+    order. The tools validate each camera when they get it; this checks the layout only."""
+    with open(path) as f:
+        lines = f.read().split("\n")
+    if lines[0].split("#")[0].split() != ["cwbvh-views", "1"]:
+        raise ValueError("%s:1: expected the header 'cwbvh-views 1'" % path)
+    views = {}
+    for n, line in enumerate(lines[1:], 2):
+        fields = line.split("#")[0].split()
+        if not fields:
+            continue
+        if len(fields) != 3:
+            raise ValueError("%s:%d: expected 3 fields 'SCENE VIEW ex,ey,ez,tx,ty,tz,fov', got %d" %
+                             (path, n, len(fields)))
+        if any(v == fields[1] for v, _ in views.get(fields[0], [])):
+            raise ValueError("%s:%d: duplicate view '%s' of scene '%s'" % (path, n, fields[1], fields[0]))
+        views.setdefault(fields[0], []).append((fields[1], fields[2]))
+    return views
 
 
 def run(cmd, capture=True):
@@ -103,6 +129,7 @@ class Bench:
         for p in [self.cwbvhc] + list(self.tools.values()):
             if not os.access(p, os.X_OK):
                 sys.exit("run.py: %s not found: build first (cmake --build %s)" % (p, args.build_dir))
+        self.views = load_views(args.views)
         self.work = tempfile.mkdtemp(prefix="cwbvh-bench-")
         self.rows = {k: [] for k in ("build", "embree_build", "trees", "traffic", "load", "error", "error_meta", "cpu_trace")}
 
@@ -177,11 +204,16 @@ class Bench:
                                                   "peak_rss_mb": j["peak_rss_bytes"] / 2**20})
                 log("%s embree %s threads=%d: %.3f s" % (name, quality, threads, j["seconds"]))
 
+    def camera_args(self, name):
+        """--camera of the scene's first catalog view; [] (default camera) for a scene not in it."""
+        v = self.views.get(name)
+        return ["--camera", v[0][1]] if v else []
+
     # ---- 2. traffic -------------------------------------------------------------------------
     def bench_traffic(self, name, main):
         n = self.args.traffic_res
         j = run_json([self.tools["traffic"], main, "--width", str(n), "--height", str(n), "--bounces", "1",
-                      "--threads", "2"])
+                      "--threads", "2"] + self.camera_args(name))
         for r in j["rows"]:
             r = dict(r)
             r["scene"] = name
@@ -214,7 +246,8 @@ class Bench:
                 ("BVH2 watertight", main, "bvh2", "watertight"),
                 ("BVH2 fast-tri", main, "bvh2", "fast")]
         cmd = [self.tools["error"], "--reference", main, "--width", str(self.args.error_res), "--height",
-               str(self.args.error_res), "--repeats", str(self.args.repeats), "--brute-check", "50"]
+               str(self.args.error_res), "--repeats", str(self.args.repeats), "--brute-check", "50"] + \
+            self.camera_args(name)
         for c in cfgs:
             cmd += ["--config", ",".join(c)]
         j = run_json(cmd)
@@ -239,7 +272,7 @@ class Bench:
             return
         out = os.path.join(self.work, name + "_cpu.json")
         run([exe, main, "--size", str(self.args.cpu_size), "--repeats", str(self.args.repeats), "--threads-max", "2",
-             "--json", out])
+             "--json", out] + self.camera_args(name))
         with open(out) as f:
             j = json.load(f)
         for r in j["results"]:
@@ -254,9 +287,12 @@ class Bench:
         meta = {"date": datetime.datetime.now().isoformat(timespec="seconds"), "command": " ".join(sys.argv),
                 "cpu_model": cpu_model(), "cores": os.cpu_count(), "platform": platform.platform(),
                 "git_rev": git_rev(), "loadavg_start": loadavg(), "scenes": {n: m for n, m in scenes},
-                "repeats": a.repeats, "quick": a.quick}
+                "repeats": a.repeats, "quick": a.quick, "view_catalog": a.views,
+                "views": {n: ("%s %s" % self.views[n][0]) if n in self.views else "default camera"
+                          for n, _ in scenes}}
         for name, mesh in scenes:
             t0 = time.time()
+            log("%s: rays from %s" % (name, meta["views"][name]))
             tris_hint = 0
             try:
                 s = self.compile(mesh, os.path.join(self.work, name + "_probe.cwbvh"), "sbvh", "optimal", 2)
@@ -311,6 +347,9 @@ def main():
     p.add_argument("--out", help="results folder (default bench/results/cpu/<date>)")
     p.add_argument("--build-dir", help="CMake build folder holding bin/ (default build/, then build-bench/)")
     p.add_argument("--repeats", type=int, help="repeats per timing (default 3, quick 2)")
+    p.add_argument("--views", default=DEFAULT_VIEWS,
+                   help="view catalog (default $CWBVH_VIEWS, else views/catalog.txt); the first view of a scene "
+                        "is the camera of its traffic, error and CPU rays")
     p.add_argument("--no-plots", action="store_true")
     a = p.parse_args()
     if not a.build_dir:

@@ -7,8 +7,16 @@
 # last. Prepare gpu_inputs/ first with scripts/make-gpu-inputs.sh (on a machine with
 # the compiler's dependencies).
 #
-# usage: scripts/gpu-check.sh [extra cwbvh_gpu_check args, e.g. --width 1920 --height 1080]
+# Rays come from the view catalog (views/catalog.txt: every view of each scene, inside the
+# enclosed ones; scene key = the .cwbvh file's stem), 2048x2048, primary + diffuse bounces 1-4.
+#
+# usage: scripts/gpu-check.sh [extra cwbvh_gpu_check args, e.g. --width 1024 --height 1024 --repeat 9]
 # env:   BUILD=build-gpu  ARCH=(CMAKE_CUDA_ARCHITECTURES, default: the project's 75/90 set)
+#        CSV=path of the results table (default $BUILD/gpu_check.csv; commit a copy under
+#        bench/results/gpu/ with the command and the device)
+# exit:  0 only when cwbvh_gpu_check printed "RESULT: PASS". 1 a mismatch (or no PASS line);
+#        2 a build, usage or CUDA error, or "SKIPPED" although nvidia-smi lists a GPU (the
+#        kernels did not run where they should); 3 no GPU on this machine (nothing checked).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${BUILD:-$root/build-gpu}
@@ -24,21 +32,46 @@ cmake -S "$root" -B "$build" "${gen[@]}" -DCMAKE_BUILD_TYPE=Release -DCWBVH_BUIL
   -DCWBVH_BUILD_TESTS=OFF -DCWBVH_CUDA=ON -DCMAKE_CUDA_COMPILER="$nvcc" \
   -DCWBVH_XXHASH_INCLUDE_DIR="$xx" "${arch_args[@]}" > "$build.configure.log" 2>&1 ||
   { cat "$build.configure.log"; exit 2; }
-cmake --build "$build" -j "$(nproc)" --target cwbvh_gpu_check cwbvh 2>&1 | tail -3
+cmake --build "$build" -j "$(nproc)" --target cwbvh_gpu_check cwbvh > "$build.build.log" 2>&1 ||
+  { tail -40 "$build.build.log"; exit 2; }
+tail -2 "$build.build.log"
 
 # ptxas report for this device's architecture (compile only; next to the committed ones).
 cc=$(nvidia-smi --query-gpu=compute_cap --format=csv,noheader 2>/dev/null | head -1 | tr -d . || true)
 if [[ -n "$cc" ]]; then
   mkdir -p "$root/bench/results"
-  "$nvcc" -std=c++17 -O3 -DNDEBUG -arch=sm_"$cc" -Xptxas -v -I"$root/kernels/include" -I"$root/format/include" \
-    -I"$root/loader/include" -c "$root/kernels/src/trace.cu" -o "$build/ptxas_check.o" 2>&1 | c++filt \
-    > "$root/bench/results/ptxas-sm_${cc}-device.txt" || true
+  cus=("$root"/kernels/src/kernels_*.cu)
+  [[ -e "${cus[0]}" ]] || cus=("$root/kernels/src/trace.cu")
+  for cu in "${cus[@]}"; do
+    "$nvcc" -std=c++17 -O3 -DNDEBUG -arch=sm_"$cc" -Xptxas -v -I"$root/kernels/include" -I"$root/format/include" \
+      -I"$root/loader/include" -c "$cu" -o "$build/ptxas_check.o" 2>&1 | c++filt || true
+  done > "$root/bench/results/ptxas-sm_${cc}-device.txt"
   nvidia-smi --query-gpu=name,driver_version,clocks.max.sm,clocks.max.mem --format=csv || true
 fi
 
 scenes=("$inputs"/*.cwbvh)
 [[ -e "${scenes[0]}" ]] || scenes=()
+csv=${CSV:-$build/gpu_check.csv}
+log="$build/gpu_check.log"
 set +e
-"$build/bin/cwbvh_gpu_check" "$@" "${scenes[@]}" 2>&1 | tee "$build/gpu_check.log"
+"$build/bin/cwbvh_gpu_check" --csv "$csv" "$@" "${scenes[@]}" 2>&1 | tee "$log"
 rc=${PIPESTATUS[0]}
-exit "$rc"
+set -e
+gpus=$(nvidia-smi -L 2>/dev/null | grep -c '^GPU ' || true)
+if grep -q '^SKIPPED' "$log"; then
+  if (( gpus > 0 )); then
+    echo "gpu-check: FAIL: cwbvh_gpu_check skipped, but nvidia-smi lists $gpus GPU(s)" >&2
+    exit 2
+  fi
+  echo "gpu-check: no GPU on this machine: nothing was checked" >&2
+  exit 3
+fi
+if (( rc != 0 )); then
+  echo "gpu-check: FAIL: cwbvh_gpu_check exited $rc" >&2
+  exit "$rc"
+fi
+if ! grep -qx 'RESULT: PASS' "$log"; then
+  echo "gpu-check: FAIL: no 'RESULT: PASS' line in the output" >&2
+  exit 1
+fi
+echo "gpu-check: PASS (table: $csv)"

@@ -6,8 +6,10 @@
 # Budget: the device tool carries at most 64 MiB with the working tree; scenes are
 # added in order while the total stays under CWBVH_GPU_INPUTS_MIB (default 56).
 #
-# usage: scripts/make-gpu-inputs.sh [SCENE...]   (default: bunny.obj sponza_dabrovic.glb
-#        dragon_res2.glb fg_cg57.glb from $CWBVH_SHARED_SCENES or ../shared/scenes)
+# usage: scripts/make-gpu-inputs.sh [SCENE...]   (default, in order of priority: bunny.obj
+#        sponza_dabrovic.glb oa_oacmpctf3.glb fg_cg57.glb dragon_res2.glb from
+#        $CWBVH_SHARED_SCENES or ../shared/scenes; the file stem is the view catalog's
+#        scene key, so keep the names)
 # env:   CWBVHC=path/to/cwbvhc (default: build it in build/ with the full configuration)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -20,7 +22,7 @@ if [[ ! -x "$cwbvhc" ]]; then
   ninja -C "$root/build" -j2 cwbvhc
 fi
 if [[ $# -eq 0 ]]; then
-  set -- bunny.obj sponza_dabrovic.glb dragon_res2.glb fg_cg57.glb
+  set -- bunny.obj sponza_dabrovic.glb oa_oacmpctf3.glb fg_cg57.glb dragon_res2.glb
 fi
 mkdir -p "$out/xxhash"
 cp /usr/include/xxhash.h "$out/xxhash/xxhash.h"

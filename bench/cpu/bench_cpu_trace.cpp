@@ -1,9 +1,11 @@
 // cwbvh_bench_cpu FILE.cwbvh [--size N] [--repeats R] [--threads-max T] [--json OUT]
+//                 [--camera ex,ey,ez,tx,ty,tz,fov]
 //
 // CPU throughput of the CWBVH reference traversal (cpu_trace.h, watertight test)
 // next to Embree 3 single-ray queries (rtcIntersect1 / rtcOccluded1, scene built
 // from the file's own triangles, build quality HIGH, default scene flags) on the
-// same rays in the same run: primary camera rays (N x N, default camera) and the
+// same rays in the same run: primary camera rays (N x N, --camera or the default
+// camera; bench/run.py passes the scene's first view of views/catalog.txt) and the
 // diffuse bounce-1 rays spawned at their hits (the paper's two ray kinds), closest
 // and any hit, 1..T threads (std::thread, interleaved blocks of 1024 rays for both).
 // Each measurement alternates CWBVH and Embree R times and reports the medians and
@@ -129,6 +131,7 @@ double median(std::vector<double> v) {
 int main(int argc, char** argv) {
     const char* path = nullptr;
     const char* json_path = nullptr;
+    const char* camera_text = nullptr;
     unsigned size = 512, repeats = 5, threads_max = 2;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
@@ -145,6 +148,8 @@ int main(int argc, char** argv) {
             if (!num(threads_max)) return std::fprintf(stderr, "cwbvh_bench_cpu: error: --threads-max T\n"), 2;
         } else if (a == "--json" && i + 1 < argc) {
             json_path = argv[++i];
+        } else if (a == "--camera" && i + 1 < argc) {
+            camera_text = argv[++i];
         } else if (a[0] != '-' && !path) {
             path = argv[i];
         } else {
@@ -167,7 +172,11 @@ int main(int argc, char** argv) {
         std::vector<Ray> rays;
     };
     std::vector<Set> sets;
-    sets.push_back({"primary", camera_rays(default_camera(*file->bounds()), size, size)});
+    Camera camera = default_camera(*file->bounds());
+    std::string camera_error;
+    if (camera_text && !parse_camera(camera_text, camera, camera_error))
+        return std::fprintf(stderr, "cwbvh_bench_cpu: error: %s\n", camera_error.c_str()), 2;
+    sets.push_back({"primary", camera_rays(camera, size, size)});
     sets.push_back({"diffuse", diffuse_rays(nodes.data(), nodes.size(), tris.data(), tris.size(), sets[0].rays, 1, 1,
                                             threads_max).rays});
 

@@ -3,10 +3,11 @@
 //
 //   cwbvh_bench_error --reference REF.cwbvh [--config NAME,FILE,TREE,TEST]...
 //                     [--width W] [--height H] [--bounces B] [--repeats R]
-//                     [--rel-tol X] [--brute-check N]
+//                     [--rel-tol X] [--brute-check N] [--camera ex,ey,ez,tx,ty,tz,fov]
 //   TREE: cwbvh | bvh2 (the file's BVH2 section)   TEST: watertight | fast
 //
-// Rays: default_camera primary rays (W x H) and the diffuse rays of bounce B
+// Rays: primary rays (W x H) of --camera (bench/run.py passes the scene's first view of
+// views/catalog.txt) or default_camera, and the diffuse rays of bounce B
 // (ray_gen.h), generated once from REF; every configuration traces the same rays.
 //
 // Oracle: tests/traverse/oracle.h's exact predicate (expansion arithmetic) and
@@ -185,6 +186,7 @@ int main(int argc, char** argv) {
     uint32_t width = 100, height = 100, bounces = 1, brute = 100;
     int repeats = 5;
     double rel_tol = 1e-5;
+    std::string camera_text;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         auto next = [&]() -> std::string {
@@ -209,6 +211,7 @@ int main(int argc, char** argv) {
         else if (a == "--repeats") repeats = std::atoi(next().c_str());
         else if (a == "--rel-tol") rel_tol = std::atof(next().c_str());
         else if (a == "--brute-check") brute = std::atoi(next().c_str());
+        else if (a == "--camera") camera_text = next();
         else die("unknown argument " + a);
     }
     if (ref.empty() || repeats < 1 || bounces < 1) die("usage: --reference REF.cwbvh --config NAME,FILE,TREE,TEST ...");
@@ -218,7 +221,10 @@ int main(int argc, char** argv) {
     const auto rnodes = rf->nodes();
     const auto rtris = rf->triangles();
     std::vector<cwbvh::Ray> sets[2];
-    sets[0] = cwbvh::camera_rays(cwbvh::default_camera(*rf->bounds()), width, height);
+    cwbvh::Camera camera = cwbvh::default_camera(*rf->bounds());
+    std::string camera_error;
+    if (!camera_text.empty() && !cwbvh::parse_camera(camera_text, camera, camera_error)) die(camera_error);
+    sets[0] = cwbvh::camera_rays(camera, width, height);
     sets[1] = cwbvh::diffuse_rays(rnodes.data(), rnodes.size(), rtris.data(), rtris.size(), sets[0], bounces, 7u, 0)
                   .rays;
 

@@ -3,8 +3,10 @@
 // (the file's optional BVH2 section: compile with --keep-sbvh).
 //
 //   cwbvh_bench_traffic FILE.cwbvh [--width W] [--height H] [--bounces B] [--threads T]
+//                       [--camera ex,ey,ez,tx,ty,tz,fov]
 //
-// Rays: kernels' ray_gen.h: default_camera(bounds) primary rays (W x H), and
+// Rays: kernels' ray_gen.h: primary rays (W x H) of --camera (bench/run.py passes the
+// scene's first view of views/catalog.txt) or default_camera(bounds), and
 // the diffuse rays of bounce 1..B (cosine hemisphere at the hit points,
 // Wächter-Binder origin offset). Bytes: a visited node is one full node fetch
 // (CWBVH 80 B, BVH2 64 B: Bvh2Node holds both child boxes), a tested triangle
@@ -38,6 +40,7 @@ int main(int argc, char** argv) {
     std::string path;
     uint32_t width = 256, height = 256, bounces = 1;
     unsigned threads = 1;
+    std::string camera_text;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         auto next = [&]() -> std::string {
@@ -48,6 +51,7 @@ int main(int argc, char** argv) {
         else if (a == "--height") height = std::atoi(next().c_str());
         else if (a == "--bounces") bounces = std::atoi(next().c_str());
         else if (a == "--threads") threads = std::atoi(next().c_str());
+        else if (a == "--camera") camera_text = next();
         else if (!a.empty() && a[0] == '-') die("unknown option " + a);
         else path = a;
     }
@@ -61,7 +65,10 @@ int main(int argc, char** argv) {
     if (bvh2.empty()) die(path + ": no BVH2 section (compile with --keep-sbvh)");
     if (!b) die(path + ": no bounds section");
 
-    const std::vector<cwbvh::Ray> primary = cwbvh::camera_rays(cwbvh::default_camera(*b), width, height);
+    cwbvh::Camera camera = cwbvh::default_camera(*b);
+    std::string camera_error;
+    if (!camera_text.empty() && !cwbvh::parse_camera(camera_text, camera, camera_error)) die(camera_error);
+    const std::vector<cwbvh::Ray> primary = cwbvh::camera_rays(camera, width, height);
     const cwbvh::DiffuseRays diffuse =
         cwbvh::diffuse_rays(nodes.data(), nodes.size(), tris.data(), tris.size(), primary, bounces, 1u, threads);
 

@@ -3,10 +3,12 @@
 
 namespace cwbvh {
 
-bool gpu_available(std::string& why) {
+GpuStatus gpu_status(std::string& why) {
     why = "cwbvh was built without CUDA (no nvcc at configure time, or CWBVH_CUDA=OFF)";
-    return false;
+    return GpuStatus::kNoCuda;
 }
+
+bool gpu_available(std::string& why) { return gpu_status(why) == GpuStatus::kReady; }
 
 GpuTraceResult trace_on_gpu(const File&, const Ray*, Hit*, size_t n, const GpuTraceOptions&) {
     GpuTraceResult r;

@@ -222,19 +222,24 @@ DiffuseRays diffuse_rays(const CwbvhNode* nodes, size_t node_count, const Triang
     for (uint32_t b = 1; b <= bounces; ++b) {
         hits.resize(cur.rays.size());
         (void)trace_cwbvh_cpu(nodes, node_count, tris, tri_count, cur.rays.data(), hits.data(), cur.rays.size(), opt);
-        DiffuseRays next;
-        for (size_t i = 0; i < cur.rays.size(); ++i) {
-            if (hits[i].prim == kMissPrim) continue;
-            const TriangleRecord* t = table.find(hits[i].prim);
-            Ray r;
-            if (t && diffuse_ray(cur.rays[i], hits[i], *t, seed, cur.path[i], b, kInfinity, r)) {
-                next.rays.push_back(r);
-                next.path.push_back(cur.path[i]);
-            }
-        }
-        cur = std::move(next);
+        cur = next_bounce(table, cur, hits, seed, b);
     }
     return cur;
+}
+
+DiffuseRays next_bounce(const PrimTable& table, const DiffuseRays& cur, const std::vector<Hit>& hits, uint32_t seed,
+                        uint32_t bounce) {
+    DiffuseRays next;
+    for (size_t i = 0; i < cur.rays.size() && i < hits.size(); ++i) {
+        if (hits[i].prim == kMissPrim) continue;
+        const TriangleRecord* t = table.find(hits[i].prim);
+        Ray r;
+        if (t && diffuse_ray(cur.rays[i], hits[i], *t, seed, cur.path[i], bounce, kInfinity, r)) {
+            next.rays.push_back(r);
+            next.path.push_back(cur.path[i]);
+        }
+    }
+    return next;
 }
 
 }  // namespace cwbvh

@@ -1,7 +1,15 @@
 // cwbvh rays FILE --primary|--diffuse [--bounce N] [--width W] [--height H]
-//                 [--seed S] [--camera ex,ey,ez,tx,ty,tz,fov] [--threads N] -o RAYS
-// Writes a ray file (spec/rays.md): camera rays of the default (or given) camera,
-// or the diffuse rays of bounce N (the paper's "diffuse" benchmark rays).
+//                 [--seed S] [--view NAME|N] [--views CATALOG] [--scene KEY]
+//                 [--camera ex,ey,ez,tx,ty,tz,fov] [--threads N] -o RAYS
+// Writes a ray file (spec/rays.md): camera rays, or the diffuse rays of bounce N
+// (the paper's "diffuse" benchmark rays). The camera: --camera when given; else
+// view NAME (or the N-th, 1-based) of the scene in the view catalog
+// (view_catalog.h: --views, else $CWBVH_VIEWS, else the compiled-in views/catalog.txt);
+// else the scene's first catalog view; else, for a scene not in the catalog,
+// default_camera. The scene key is FILE's stem unless --scene gives it. Prints the
+// view used. A bad --view is a usage error (exit 2); an unreadable or malformed
+// catalog is bad input (exit 1), except that a missing compiled-in catalog (neither
+// --views nor $CWBVH_VIEWS given) without --view falls back to the default camera.
 #include <cstdio>
 #include <cstring>
 #include <string>
@@ -11,18 +19,22 @@
 #include "cwbvh/loader.h"
 #include "cwbvh/ray_file.h"
 #include "cwbvh/ray_gen.h"
+#include "cwbvh/view_catalog.h"
 
 namespace cwbvh::tool {
 
 int run_rays(int argc, char** argv) {
     const char* usage =
         "usage: cwbvh rays FILE --primary|--diffuse [--bounce N] [--width W] [--height H] [--seed S] "
-        "[--camera ex,ey,ez,tx,ty,tz,fov] [--threads N] -o RAYS";
+        "[--view NAME|N] [--views CATALOG] [--scene KEY] [--camera ex,ey,ez,tx,ty,tz,fov] [--threads N] -o RAYS";
     const char* path = nullptr;
     const char* out = nullptr;
     int kind = 0;  // 1 primary, 2 diffuse
     uint32_t bounce = 1, width = 1024, height = 1024, seed = 1, threads = 0;
     const char* camera_text = nullptr;
+    const char* view_text = nullptr;
+    const char* views_path = nullptr;
+    const char* scene_text = nullptr;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         const char* v = nullptr;
@@ -47,6 +59,15 @@ int run_rays(int argc, char** argv) {
         } else if (a == "--camera") {
             camera_text = option_value(argc, argv, i);
             if (!camera_text) return error(kExitUsage, "rays: --camera needs a value");
+        } else if (a == "--view") {
+            view_text = option_value(argc, argv, i);
+            if (!view_text || !*view_text) return error(kExitUsage, "rays: --view needs a view name or a 1-based index");
+        } else if (a == "--views") {
+            views_path = option_value(argc, argv, i);
+            if (!views_path || !*views_path) return error(kExitUsage, "rays: --views needs a catalog path");
+        } else if (a == "--scene") {
+            scene_text = option_value(argc, argv, i);
+            if (!scene_text || !*scene_text) return error(kExitUsage, "rays: --scene needs a scene key");
         } else if (a == "-o" || a == "--output") {
             out = option_value(argc, argv, i);
             if (!out) return error(kExitUsage, "rays: -o needs a path");
@@ -59,12 +80,38 @@ int run_rays(int argc, char** argv) {
         }
     }
     if (!path || !out || kind == 0) return error(kExitUsage, usage);
+    if (camera_text && view_text) return error(kExitUsage, "rays: --camera and --view exclude each other");
 
     auto file = File::open(path, {true, kMaskNodes | kMaskTriangles | kMaskBounds});
     if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
     Camera cam = default_camera(*file->bounds());
-    std::string err;
-    if (camera_text && !parse_camera(camera_text, cam, err)) return error(kExitUsage, ("rays: " + err).c_str());
+    std::string err, view_note;
+    const std::string scene = scene_text ? scene_text : scene_key(path);
+    if (camera_text) {
+        if (!parse_camera(camera_text, cam, err)) return error(kExitUsage, ("rays: " + err).c_str());
+        view_note = "--camera";
+    } else {
+        ViewCatalog catalog;
+        const CatalogLoad loaded = load_view_catalog(views_path ? views_path : "", catalog, err);
+        if (loaded == CatalogLoad::kError || (loaded == CatalogLoad::kAbsent && view_text)) {
+            return error(kExitBadInput, ("rays: " + err).c_str());
+        } else if (loaded == CatalogLoad::kAbsent) {
+            view_note = "default camera (no view catalog: " + err + ")";
+        } else if (view_text) {
+            View v;
+            if (!catalog.find(scene, view_text, v, err)) return error(kExitUsage, ("rays: --view: " + err).c_str());
+            cam = v.camera;
+            view_note = scene + " " + v.name + " (" + catalog.source() + ":" + std::to_string(v.line) + ")";
+        } else if (catalog.has_scene(scene)) {
+            const View v = catalog.views_of(scene).front();
+            cam = v.camera;
+            view_note = scene + " " + v.name + " (first of " + std::to_string(catalog.views_of(scene).size()) +
+                        ", " + catalog.source() + ":" + std::to_string(v.line) + ")";
+        } else {
+            view_note = "default camera (scene '" + scene + "' not in " + catalog.source() + ")";
+        }
+    }
+    std::printf("view: %s: %s\n", view_note.c_str(), format_camera(cam).c_str());
 
     std::vector<Ray> rays = camera_rays(cam, width, height);
     if (kind == 2) {

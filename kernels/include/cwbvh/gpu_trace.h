@@ -1,8 +1,8 @@
 // Plain C++ entry point to the GPU tracer (no CUDA types; callers need neither
 // nvcc nor the CUDA headers). Used by `cwbvh trace --gpu`, the minimal renderer
 // and the GPU check. Always linkable: target cwbvh_gpu_trace; in a build without
-// CUDA, gpu_available() returns false ("built without CUDA") and trace_on_gpu()
-// returns an error.
+// CUDA, gpu_status() returns kNoCuda, gpu_available() false ("built without CUDA")
+// and trace_on_gpu() an error.
 #pragma once
 
 #include <cstddef>
@@ -22,7 +22,7 @@ struct GpuTraceOptions {
     bool any = false;                          ///< any-hit (occlusion) instead of closest hit
     GpuKernel kernel = GpuKernel::kCwbvh;
     TriangleTest test = TriangleTest::kWatertight;
-    int repeat = 1;                            ///< kernel runs to time (result of the last one kept)
+    int repeat = 1;                            ///< timed kernel runs, after one untimed warm-up run
     int device = -1;                           ///< CUDA device; -1: current (0)
 };
 
@@ -32,7 +32,8 @@ struct GpuTraceResult {
     std::string device_name;
     double scene_upload_ms = 0;  ///< NODE + TRIS (+ BVH2 for kBvh2) to the device
     double rays_upload_ms = 0;
-    double kernel_ms = 0;        ///< median over `repeat` kernel runs (CUDA events)
+    double kernel_ms = 0;        ///< median over `repeat` runs of the kernel launches alone
+                                 ///< (TraceOptions::kernel_ms: no allocation, memset or copy)
     double kernel_ms_min = 0;
     double hits_download_ms = 0;
     double mrays_per_s = 0;      ///< rays / median kernel time
@@ -43,8 +44,21 @@ struct GpuTraceResult {
     uint64_t triangle_bytes = 0; ///< bytes of TRIS
 };
 
-/// True when a CUDA device is present, the driver is new enough and the kernels
-/// have an image for it; otherwise false with a one-line reason. Never crashes.
+/// Why the GPU path can or cannot run (gpu_status).
+enum class GpuStatus : uint32_t {
+    kReady = 0,     ///< a device is present and the kernels load on it
+    kNoDevice = 1,  ///< no CUDA device (or no CUDA driver installed at all)
+    kNoCuda = 2,    ///< this build has no CUDA (no nvcc at configure time, or CWBVH_CUDA=OFF)
+    kUnusable = 3,  ///< a device is present but the kernels cannot run on it: driver too old
+                    ///< for the runtime, no kernel image for its architecture, device busy
+                    ///< or prohibited, or another CUDA error
+};
+
+/// The GPU path's status, with a one-line reason in `why` (cleared when kReady).
+/// Never crashes. Benchmarks skip only on kNoDevice / kNoCuda and fail on kUnusable.
+GpuStatus gpu_status(std::string& why);
+
+/// gpu_status(why) == GpuStatus::kReady.
 bool gpu_available(std::string& why);
 
 /// Uploads the scene, the rays, traces, downloads the hits (n records into hits).

@@ -75,6 +75,14 @@ struct DiffuseRays {
     std::vector<uint32_t> path;  ///< path (pixel) index of each ray
 };
 
+/// One bounce of the diffuse benchmark paths: for each ray of `cur` whose closest hit
+/// `hits[i]` is a hit, the diffuse ray leaving it (diffuse_ray with `seed`, the ray's
+/// path index and `bounce`, tmax = +inf), in path order. Misses (and hits whose
+/// triangle is not in `table`, or whose ray is not finite) end their path.
+/// hits.size() == cur.rays.size().
+DiffuseRays next_bounce(const PrimTable& table, const DiffuseRays& cur, const std::vector<Hit>& hits, uint32_t seed,
+                        uint32_t bounce);
+
 /// The paper's diffuse benchmark rays: trace `primary` (closest hit, watertight,
 /// CWBVH CPU traversal with `threads`), spawn one diffuse ray per hit, repeat
 /// `bounces` times, and return the rays of bounce `bounces` of the paths still
