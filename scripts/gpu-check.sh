@@ -14,6 +14,8 @@
 # env:   BUILD=build-gpu  ARCH=(CMAKE_CUDA_ARCHITECTURES, default: the project's 75/90 set)
 #        CSV=path of the results table (default $BUILD/gpu_check.csv; commit a copy under
 #        bench/results/gpu/ with the command and the device)
+#        CWBVH_SANITIZE_GPU=0 skips the compute-sanitizer memcheck + racecheck pass (run last,
+#        64x64 rays on the bunny or the synthetic scene; any report fails the check)
 # exit:  0 only when cwbvh_gpu_check printed "RESULT: PASS". 1 a mismatch (or no PASS line);
 #        2 a build, usage or CUDA error, or "SKIPPED" although nvidia-smi lists a GPU (the
 #        kernels did not run where they should); 3 no GPU on this machine (nothing checked).
@@ -42,10 +44,7 @@ if [[ -n "$cc" ]]; then
   mkdir -p "$root/bench/results"
   cus=("$root"/kernels/src/kernels_*.cu)
   [[ -e "${cus[0]}" ]] || cus=("$root/kernels/src/trace.cu")
-  for cu in "${cus[@]}"; do
-    "$nvcc" -std=c++17 -O3 -DNDEBUG -arch=sm_"$cc" -Xptxas -v -I"$root/kernels/include" -I"$root/format/include" \
-      -I"$root/loader/include" -c "$cu" -o "$build/ptxas_check.o" 2>&1 | c++filt || true
-  done > "$root/bench/results/ptxas-sm_${cc}-device.txt"
+  "$root/scripts/ptxas-report.sh" "sm_$cc" "$root/bench/results/ptxas-sm_${cc}-device.txt" || true
   nvidia-smi --query-gpu=name,driver_version,clocks.max.sm,clocks.max.mem --format=csv || true
 fi
 
@@ -73,5 +72,27 @@ fi
 if ! grep -qx 'RESULT: PASS' "$log"; then
   echo "gpu-check: FAIL: no 'RESULT: PASS' line in the output" >&2
   exit 1
+fi
+# compute-sanitizer memcheck and racecheck on a small scene and a small image (issue
+# 10: both must be clean); skipped with a note where the tool is not installed.
+if [[ "${CWBVH_SANITIZE_GPU:-1}" == "1" ]]; then
+  sanitizer=$(command -v compute-sanitizer || echo /usr/local/cuda/bin/compute-sanitizer)
+  if [[ -x "$sanitizer" ]]; then
+    small=()
+    for s in "${scenes[@]}"; do
+      [[ "$(basename "$s")" == bunny* ]] && small=("$s")
+    done
+    for tool in memcheck racecheck; do
+      if ! "$sanitizer" --tool "$tool" --error-exitcode 9 "$build/bin/cwbvh_gpu_check" --width 64 --height 64 \
+        --repeat 1 "${small[@]}" > "$build/sanitize-$tool.log" 2>&1; then
+        tail -30 "$build/sanitize-$tool.log"
+        echo "gpu-check: FAIL: compute-sanitizer $tool (log: $build/sanitize-$tool.log)" >&2
+        exit 1
+      fi
+      grep -E "ERROR SUMMARY|RACECHECK SUMMARY" "$build/sanitize-$tool.log" | tail -1
+    done
+  else
+    echo "gpu-check: compute-sanitizer not found: memcheck/racecheck not run" >&2
+  fi
 fi
 echo "gpu-check: PASS (table: $csv)"
