@@ -143,10 +143,12 @@ CWBVH_HD CWBVH_INLINE bool pop_if_idle(CwbvhLane<kTest>& l, Stack& stack) {
 
 /// The Hit of a finished ray: re-runs the triangle test of the closest hit (same
 /// inputs, same t, u, v) and adds its primitive id; make_miss() without a hit.
+/// The interval end is +inf, not tmax: the test compares its unrounded t with
+/// tmax, and tmax holds that t rounded to float, which may lie below it.
 template <TriangleTest kTest>
 CWBVH_HD CWBVH_INLINE Hit lane_hit(const CwbvhLane<kTest>& l, const TriangleRecord& tri) {
     TriangleHit th;
-    if (l.hit_tri == kNoTriangle || !l.tri_test(tri, l.tmin, l.tmax, th)) return make_miss();
+    if (l.hit_tri == kNoTriangle || !l.tri_test(tri, l.tmin, kInfinity, th)) return make_miss();
     return Hit{th.t, th.u, th.v, tri.prim};
 }
 

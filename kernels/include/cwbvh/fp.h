@@ -92,6 +92,13 @@ CWBVH_HD CWBVH_INLINE double mul_rn(double a, double b) {
     return a * b;
 #endif
 }
+CWBVH_HD CWBVH_INLINE double add_rn(double a, double b) {
+#if defined(__CUDA_ARCH__)
+    return __dadd_rn(a, b);
+#else
+    return a + b;
+#endif
+}
 CWBVH_HD CWBVH_INLINE double sub_rn(double a, double b) {
 #if defined(__CUDA_ARCH__)
     return __dsub_rn(a, b);

@@ -69,7 +69,11 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
     bool active = false;
     uint32_t ray_id = 0;
     CwbvhLane<kTest> l(Ray{{0.0f, 0.0f, 0.0f}, 0.0f, {1.0f, 1.0f, 1.0f}, 0.0f});
-    uint32_t n_nodes = 0, n_tris = 0;
+    // Statistics variant: the per-lane counters live in shared memory, not in two
+    // registers the production variant does not have (keeps the counting variant
+    // within the same 80-register budget without spills).
+    __shared__ uint32_t s_counts[2][kCwbvhBlockThreads];
+    if (kCount) s_counts[0][threadIdx.x] = s_counts[1][threadIdx.x] = 0;
     bool exhausted = false;  // warp-uniform: the global ray counter ran past the end
 
     // Ending a ray is recorded here and carried out once per iteration, at the end
@@ -119,7 +123,7 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                 uint32_t index = 0;
                 const NodeStep step = next_node(l, stack, p.node_count, index);
                 if (step == NodeStep::kVisit) {
-                    if (kCount) ++n_nodes;
+                    if (kCount) ++s_counts[0][threadIdx.x];
                     visit_node(l, load_node(p.nodes + index));
                 } else if (step == NodeStep::kOverflow) {
                     finish(TraceStatus::kStackOverflow);
@@ -142,7 +146,7 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                         if (ti == kNoTriangle) {
                             finish(TraceStatus::kBadIndex);
                         } else {
-                            if (kCount) ++n_tris;
+                            if (kCount) ++s_counts[1][threadIdx.x];
                             if (test_triangle(l, load_triangle(p.tris + ti), ti) && kMode == HitMode::kAny)
                                 finish(TraceStatus::kOk);
                         }
@@ -172,8 +176,8 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
     }
 
     if (kCount) {
-        warp_add(&p.work->nodes, n_nodes, lane);
-        warp_add(&p.work->triangles, n_tris, lane);
+        warp_add(&p.work->nodes, s_counts[0][threadIdx.x], lane);
+        warp_add(&p.work->triangles, s_counts[1][threadIdx.x], lane);
     }
 }
 
