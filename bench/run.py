@@ -172,7 +172,9 @@ class Bench:
                 s = json.load(f)
             builder, collapse = key if isinstance(key, tuple) else ("sbvh", "optimal")
             self.rows["trees"].append(self.tree_row(name, builder, collapse, 1e-5 if key != "alpha1" else 1.0, s, None))
-        self.rows["trees"].append(self.tree_row(name, "sbvh", "optimal", 1e-5, st, st["bytes"].get("BVH2")))
+        # BV2L (leaf ranges) since format 1.1; BVH2 from older compilers.
+        bvh2_bytes = st["bytes"].get("BV2L", st["bytes"].get("BVH2"))
+        self.rows["trees"].append(self.tree_row(name, "sbvh", "optimal", 1e-5, st, bvh2_bytes))
         self.rows["trees"][-1]["config"] = "main(+BVH2)"
         return files
 

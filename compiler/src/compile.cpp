@@ -117,7 +117,7 @@ bool compile_phases(const CompileOptions& options, CompileStats& stats, std::str
         }))
         return false;
 
-    // The binary tree is only needed again for the optional BVH2 section;
+    // The binary tree is only needed again for the optional BV2L section;
     // without it, it is the largest structure alive (36 bytes per node).
     if (!options.keep_sbvh) BinaryBvh{}.nodes.swap(binary.nodes);
 

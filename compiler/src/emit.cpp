@@ -2,7 +2,7 @@
 // file format. Which sections are written, and with which flags:
 //   NODE, TRIS, PMAP, BNDS  required (a renderer needs them)
 //   BILD, SRCN              optional, always written
-//   BVH2                    optional, --keep-sbvh
+//   BV2L                    optional, --keep-sbvh (binary BVH with leaf ranges, format 1.1)
 //   VERT, INDX              optional, --keep-mesh
 #include "cwbvh/compiler/emit.h"
 
@@ -66,6 +66,7 @@ const char* section_name(uint32_t type) {
         case kSectionBounds: return "BNDS";
         case kSectionBuildInfo: return "BILD";
         case kSectionBvh2: return "BVH2";
+        case kSectionBvh2Leaves: return "BV2L";
         case kSectionVertices: return "VERT";
         case kSectionIndices: return "INDX";
         case kSectionSourceNames: return "SRCN";
@@ -97,7 +98,7 @@ bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error) {
     if (in.options->keep_sbvh) {
         out.bvh2_depth = bvh2_tree_depth(out.tree.bvh2);
         if (out.bvh2_depth > kMaxBvh2Depth) {
-            error = "the binary SBVH is " + std::to_string(out.bvh2_depth) + " levels deep; the BVH2 section allows " +
+            error = "the binary SBVH is " + std::to_string(out.bvh2_depth) + " levels deep; the BV2L section allows " +
                     std::to_string(kMaxBvh2Depth) + " (the baseline kernel's stack); compile without --keep-sbvh";
             return false;
         }
@@ -145,7 +146,7 @@ bool write_scene(const EmitInput& in, const EmitResult& e, std::vector<std::pair
     writer.add_array<SceneBounds>(kSectionBounds, kSectionRequired, std::span<const SceneBounds>(&e.bounds, 1));
     writer.add_array<BuildInfo>(kSectionBuildInfo, 0, std::span<const BuildInfo>(&e.build_info, 1));
     writer.add_array<uint8_t>(kSectionSourceNames, 0, e.source_names);
-    if (in.options->keep_sbvh) writer.add_array<Bvh2Node>(kSectionBvh2, 0, e.tree.bvh2);
+    if (in.options->keep_sbvh) writer.add_array<Bvh2Node>(kSectionBvh2Leaves, 0, e.tree.bvh2);
     if (in.options->keep_mesh) {
         static_assert(sizeof(Vec3) == 12 && sizeof(std::array<uint32_t, 3>) == 12);
         writer.add_section(kSectionVertices, 0, 12, scene.vertices.size(),

@@ -1,12 +1,73 @@
-// BVH2 section: the binary SBVH in the 64-byte node layout of Aila & Laine's
-// GPU kernels (Aila, Laine 2009; Aila, Laine, Karras 2012), sharing the TRIS
-// records of the wide tree.
+// BV2L section: the binary SBVH in the 64-byte node layout of Aila & Laine's GPU
+// kernels (Aila, Laine 2009; Aila, Laine, Karras 2012), cut at the wide tree's
+// leaves so that a leaf holds the same 1-3 triangle records as the wide leaf
+// (Ylitie et al. 2017's SAH-optimal collapse chose them), sharing TRIS.
+//
+// Each wide leaf was made from one binary subtree (collapse.cpp, make_wide_leaf:
+// all binary leaves under the subtree's root m, duplicates of one triangle stored
+// once), and the encoder put its records consecutively in TRIS. So the BVH2 keeps
+// the binary nodes above those subtrees, and the child that was m becomes a leaf
+// child: box = m's box (= the wide leaf's exact box), ~child = the first TRIS
+// record, leaf_count = the record count. No triangle is duplicated.
 #include <climits>
 
 #include "cwbvh/compiler/collapse.h"
 #include "cwbvh/compiler/encode.h"
 
 namespace cwbvh::compiler {
+namespace {
+
+struct Bvh2Leaf {
+    uint32_t first_tri;  ///< first TRIS record
+    uint32_t count;      ///< records, 1..kMaxBvh2LeafTriangles
+    uint32_t cuts = 0;   ///< binary subtree roots found for it (must end at 1)
+};
+
+/// One entry per wide leaf; ref_leaf[r] = the wide leaf holding WideBvh::leaf_refs[r].
+bool wide_leaves(const WideBvh& wide, const EncodedTree& tree, std::vector<Bvh2Leaf>& leaves,
+                 std::vector<uint32_t>& ref_leaf, std::string& error) {
+    ref_leaf.assign(wide.leaf_refs.size(), kInvalidIndex);
+    for (const WideNode& node : wide.nodes) {
+        for (const WideChild& ch : node.slots) {
+            if (ch.kind != WideChild::kLeaf) continue;
+            const uint32_t id = uint32_t(leaves.size());
+            if (ch.ref_count < 1 || ch.ref_count > kMaxBvh2LeafTriangles || ch.first_ref > ref_leaf.size() ||
+                ch.ref_count > ref_leaf.size() - ch.first_ref) {
+                error = "bvh2: wide leaf " + std::to_string(id) + " has a bad reference range";
+                return false;
+            }
+            const uint32_t first =
+                ch.first_ref < tree.ref_to_tri.size() ? tree.ref_to_tri[ch.first_ref] : kInvalidIndex;
+            for (uint32_t k = 0; k < ch.ref_count; ++k) {
+                const uint32_t r = ch.first_ref + k;
+                // encode_cwbvh gives a leaf's triangles consecutive records (spec 3.1 layout).
+                if (r >= tree.ref_to_tri.size() || first > uint32_t(INT32_MAX) - k || tree.ref_to_tri[r] != first + k) {
+                    error = "bvh2: the records of wide leaf " + std::to_string(id) + " are not consecutive in TRIS";
+                    return false;
+                }
+                if (ref_leaf[r] != kInvalidIndex) {
+                    error = "bvh2: reference " + std::to_string(r) + " is in two wide leaves";
+                    return false;
+                }
+                ref_leaf[r] = id;
+            }
+            leaves.push_back({first, ch.ref_count});
+        }
+    }
+    return true;
+}
+
+void set_box(Bvh2Node& n, int c, const Aabb& b) {
+    if (c == 0) {
+        n.c0_lo_x = b.lo[0], n.c0_hi_x = b.hi[0], n.c0_lo_y = b.lo[1], n.c0_hi_y = b.hi[1];
+        n.c0_lo_z = b.lo[2], n.c0_hi_z = b.hi[2];
+    } else {
+        n.c1_lo_x = b.lo[0], n.c1_hi_x = b.hi[0], n.c1_lo_y = b.lo[1], n.c1_hi_y = b.hi[1];
+        n.c1_lo_z = b.lo[2], n.c1_hi_z = b.hi[2];
+    }
+}
+
+}  // namespace
 
 bool encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree& tree, std::vector<Bvh2Node>& out,
                  std::string& error) {
@@ -17,59 +78,81 @@ bool encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree
         error = "bvh2: the wide BVH was not collapsed from this binary BVH";
         return false;
     }
-    auto leaf_child = [&](uint32_t leaf, int32_t& child) {
-        const uint32_t ref = wide.binary_leaf_ref[leaf];
-        if (ref >= tree.ref_to_tri.size() || tree.ref_to_tri[ref] > uint32_t(INT32_MAX)) {
-            error = "bvh2: binary leaf " + std::to_string(leaf) + " has no triangle record";
-            return false;
-        }
-        child = ~int32_t(tree.ref_to_tri[ref]);
-        return true;
-    };
-    auto set_box = [](Bvh2Node& n, int c, const Aabb& b) {
-        if (c == 0) {
-            n.c0_lo_x = b.lo[0], n.c0_hi_x = b.hi[0], n.c0_lo_y = b.lo[1], n.c0_hi_y = b.hi[1];
-            n.c0_lo_z = b.lo[2], n.c0_hi_z = b.hi[2];
-        } else {
-            n.c1_lo_x = b.lo[0], n.c1_hi_x = b.hi[0], n.c1_lo_y = b.lo[1], n.c1_hi_y = b.hi[1];
-            n.c1_lo_z = b.lo[2], n.c1_hi_z = b.hi[2];
-        }
-    };
-    if (binary.nodes[0].is_leaf()) {
-        // The kernels start at an internal node: duplicate the single leaf.
-        Bvh2Node n{};
-        int32_t child = 0;
-        if (!leaf_child(0, child)) return false;
-        set_box(n, 0, binary.nodes[0].box);
-        set_box(n, 1, binary.nodes[0].box);
-        n.child[0] = n.child[1] = child;
-        out.push_back(n);
-        return true;
+    if (tree.triangles.size() > kMaxBvh2LeafTris) {
+        error = "bvh2: more than 2^29 triangle records (the limit of the BV2L section)";
+        return false;
     }
-    // Internal binary nodes keep their (depth-first) order.
-    std::vector<uint32_t> index(binary.nodes.size(), kInvalidIndex);
-    uint32_t count = 0;
-    for (size_t i = 0; i < binary.nodes.size(); ++i) {
-        if (binary.nodes[i].is_leaf()) continue;
-        if (count == uint32_t(INT32_MAX)) {
-            error = "bvh2: too many nodes for 31-bit indices";
-            return false;
-        }
-        index[i] = count++;
-    }
-    out.resize(count);
-    for (size_t i = 0; i < binary.nodes.size(); ++i) {
+    std::vector<Bvh2Leaf> leaves;
+    std::vector<uint32_t> ref_leaf;
+    if (!wide_leaves(wide, tree, leaves, ref_leaf, error)) return false;
+
+    // group[i]: the wide leaf every binary leaf under node i belongs to, or
+    // kInvalidIndex if they span several (or i is above the cut). Children have
+    // larger indices than their parent (check_binary), so one backward pass.
+    const size_t n_binary = binary.nodes.size();
+    std::vector<uint32_t> group(n_binary, kInvalidIndex);
+    for (size_t i = n_binary; i-- > 0;) {
         const BinaryNode& b = binary.nodes[i];
-        if (b.is_leaf()) continue;
-        Bvh2Node& n = out[index[i]];
-        for (int c = 0; c < 2; ++c) {
-            const uint32_t ch = b.child[c];
-            set_box(n, c, binary.nodes[ch].box);
-            if (binary.nodes[ch].is_leaf()) {
-                if (!leaf_child(ch, n.child[c])) return false;
-            } else {
-                n.child[c] = int32_t(index[ch]);
+        if (b.is_leaf()) {
+            const uint32_t r = wide.binary_leaf_ref[i];
+            if (r >= ref_leaf.size() || ref_leaf[r] == kInvalidIndex) {
+                error = "bvh2: binary leaf " + std::to_string(i) + " is in no wide leaf";
+                return false;
             }
+            group[i] = ref_leaf[r];
+        } else if (group[b.child[0]] == group[b.child[1]]) {
+            group[i] = group[b.child[0]];
+        }
+    }
+
+    if (group[0] != kInvalidIndex) {
+        // The whole tree is one wide leaf (a single reference): the kernels start at
+        // an internal node, so the root holds that leaf in both children.
+        Bvh2Leaf& leaf = leaves[group[0]];
+        Bvh2Node n{};
+        for (int c = 0; c < 2; ++c) {
+            set_box(n, c, binary.nodes[0].box);
+            n.child[c] = ~int32_t(leaf.first_tri);
+            n.leaf_count[c] = leaf.count;
+        }
+        out.push_back(n);
+        leaf.cuts = 1;
+    } else {
+        // Binary nodes above the cut keep their (depth-first) order.
+        std::vector<uint32_t> index(n_binary, kInvalidIndex);
+        uint32_t count = 0;
+        for (size_t i = 0; i < n_binary; ++i) {
+            if (group[i] != kInvalidIndex) continue;
+            if (count == uint32_t(INT32_MAX)) {
+                error = "bvh2: too many nodes for 31-bit indices";
+                return false;
+            }
+            index[i] = count++;
+        }
+        out.resize(count);
+        for (size_t i = 0; i < n_binary; ++i) {
+            if (index[i] == kInvalidIndex) continue;
+            const BinaryNode& b = binary.nodes[i];
+            Bvh2Node& n = out[index[i]];
+            for (int c = 0; c < 2; ++c) {
+                const uint32_t ch = b.child[c];
+                set_box(n, c, binary.nodes[ch].box);
+                if (group[ch] == kInvalidIndex) {
+                    n.child[c] = int32_t(index[ch]);
+                    n.leaf_count[c] = 0;
+                    continue;
+                }
+                Bvh2Leaf& leaf = leaves[group[ch]];
+                ++leaf.cuts;
+                n.child[c] = ~int32_t(leaf.first_tri);
+                n.leaf_count[c] = leaf.count;
+            }
+        }
+    }
+    for (size_t id = 0; id < leaves.size(); ++id) {
+        if (leaves[id].cuts != 1) {
+            error = "bvh2: wide leaf " + std::to_string(id) + " is not one binary subtree";
+            return false;
         }
     }
     return true;

@@ -92,6 +92,22 @@ std::string describe_text(const FileLayout& l) {
         o += "  SAH binary " + num(bi.sah_binary) + ", SAH wide " + num(bi.sah_wide) + ", avg children " +
              num(bi.avg_children) + "\n";
     }
+    for (const uint32_t type : {kSectionBvh2Leaves, kSectionBvh2}) {
+        const SectionEntry* e = l.find(type);
+        if (e == nullptr || e->element_size != sizeof(Bvh2Node)) continue;
+        uint64_t leaves = 0, records = 0;
+        for (uint64_t i = 0; i < e->element_count; ++i) {
+            const auto n = element<Bvh2Node>(l, *e, i);
+            for (int c = 0; c < 2; ++c) {
+                if (n.child[c] >= 0) continue;
+                ++leaves;
+                records += n.leaf_count[c] == 0 ? 1u : n.leaf_count[c];  // BVH2: 0 = one record
+            }
+        }
+        o += fmt("binary BVH (%s): %" PRIu64 " nodes, %" PRIu64 " leaves, %.2f triangle records per leaf\n",
+                 type == kSectionBvh2Leaves ? "BV2L, leaf ranges" : "BVH2, one triangle per leaf", e->element_count,
+                 leaves, leaves ? double(records) / double(leaves) : 0.0);
+    }
     return o;
 }
 
@@ -146,14 +162,19 @@ std::string describe_json(const FileLayout& l, bool decode_content) {
                      "\"first_triangle\": %u}",
                      r.first, r.count, r.input, r.mesh, r.primitive, r.first_triangle);
         });
-        list("bvh2", kSectionBvh2, [&](const SectionEntry& e, uint64_t i) {
+        auto bvh2_node = [&](const SectionEntry& e, uint64_t i, bool leaf_ranges) {
             const auto n = element<Bvh2Node>(l, e, i);
             const float c0lo[3] = {n.c0_lo_x, n.c0_lo_y, n.c0_lo_z}, c0hi[3] = {n.c0_hi_x, n.c0_hi_y, n.c0_hi_z};
             const float c1lo[3] = {n.c1_lo_x, n.c1_lo_y, n.c1_lo_z}, c1hi[3] = {n.c1_hi_x, n.c1_hi_y, n.c1_hi_z};
-            o += "{\"child\": [" + std::to_string(n.child[0]) + ", " + std::to_string(n.child[1]) + "], \"c0\": {\"lo\": " +
-                 vec3(c0lo) + ", \"hi\": " + vec3(c0hi) + "}, \"c1\": {\"lo\": " + vec3(c1lo) + ", \"hi\": " +
-                 vec3(c1hi) + "}}";
-        });
+            o += "{\"child\": [" + std::to_string(n.child[0]) + ", " + std::to_string(n.child[1]) + "]";
+            if (leaf_ranges)
+                o += ", \"leaf_count\": [" + std::to_string(n.leaf_count[0]) + ", " +
+                     std::to_string(n.leaf_count[1]) + "]";
+            o += ", \"c0\": {\"lo\": " + vec3(c0lo) + ", \"hi\": " + vec3(c0hi) + "}, \"c1\": {\"lo\": " + vec3(c1lo) +
+                 ", \"hi\": " + vec3(c1hi) + "}}";
+        };
+        list("bvh2", kSectionBvh2, [&](const SectionEntry& e, uint64_t i) { bvh2_node(e, i, false); });
+        list("bvh2_leaf_ranges", kSectionBvh2Leaves, [&](const SectionEntry& e, uint64_t i) { bvh2_node(e, i, true); });
     }
     o += "\n}\n";
     return o;

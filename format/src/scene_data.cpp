@@ -14,7 +14,9 @@ void add_scene_sections(Writer& writer, const SceneData& scene) {
     add(kSectionSourceMap, sizeof(SourceRange), scene.source_ranges.size(), scene.source_ranges.data());
     add(kSectionBounds, sizeof(SceneBounds), 1, &scene.bounds);
     if (scene.build_info) add(kSectionBuildInfo, sizeof(BuildInfo), 1, &*scene.build_info);
-    if (!scene.bvh2.empty()) add(kSectionBvh2, sizeof(Bvh2Node), scene.bvh2.size(), scene.bvh2.data());
+    if (!scene.bvh2.empty())
+        add(scene.bvh2_leaf_ranges ? kSectionBvh2Leaves : kSectionBvh2, sizeof(Bvh2Node), scene.bvh2.size(),
+            scene.bvh2.data());
     if (!scene.vertices.empty()) add(kSectionVertices, 12, scene.vertices.size() / 3, scene.vertices.data());
     if (!scene.indices.empty()) add(kSectionIndices, 12, scene.indices.size() / 3, scene.indices.data());
     if (!scene.source_names.empty())

@@ -88,26 +88,32 @@ void quantize_axis(CwbvhNode& n, int a, const std::vector<Box>& boxes, const std
     }
 }
 
-uint32_t build_bvh2(std::vector<Bvh2Node>& out, const std::vector<Box>& boxes, uint32_t b, uint32_t e) {
+/// Median split over records [b, e); a child range of at most max_leaf records
+/// is a leaf (max_leaf 1: one record, leaf_count 0 as BVH2 wants; more: BV2L counts).
+uint32_t build_bvh2(std::vector<Bvh2Node>& out, const std::vector<Box>& boxes, uint32_t b, uint32_t e,
+                    uint32_t max_leaf) {
     const uint32_t index = uint32_t(out.size());
     out.emplace_back();
     const uint32_t mid = b + (e - b) / 2;
     const uint32_t ranges[2][2] = {{b, mid}, {mid, e}};
     Box child_box[2];
     int32_t child[2];
+    uint32_t leaf_count[2] = {0, 0};
     for (int c = 0; c < 2; ++c) {
         const uint32_t cb = ranges[c][0], ce = ranges[c][1];
         for (uint32_t i = cb; i < ce; ++i) {
             child_box[c].grow(boxes[i].lo);
             child_box[c].grow(boxes[i].hi);
         }
-        child[c] = ce - cb == 1 ? ~int32_t(cb) : int32_t(build_bvh2(out, boxes, cb, ce));
+        const bool leaf = ce - cb <= max_leaf;
+        child[c] = leaf ? ~int32_t(cb) : int32_t(build_bvh2(out, boxes, cb, ce, max_leaf));
+        if (leaf && max_leaf > 1) leaf_count[c] = ce - cb;
     }
     Bvh2Node& n = out[index];
     n = Bvh2Node{child_box[0].lo[0], child_box[0].hi[0], child_box[0].lo[1], child_box[0].hi[1],
                  child_box[1].lo[0], child_box[1].hi[0], child_box[1].lo[1], child_box[1].hi[1],
                  child_box[0].lo[2], child_box[0].hi[2], child_box[1].lo[2], child_box[1].hi[2],
-                 {child[0], child[1]}, {0, 0}};
+                 {child[0], child[1]}, {leaf_count[0], leaf_count[1]}};
     return index;
 }
 
@@ -189,12 +195,16 @@ SceneData make_synthetic_scene(const SyntheticOptions& options) {
     if (options.bvh2 && count > 0) {
         std::vector<Box> ref_boxes(scene.triangles.size());
         for (size_t i = 0; i < scene.triangles.size(); ++i) ref_boxes[i].grow(scene.triangles[i]);
+        // BV2L: leaves of up to 3 consecutive records (as cwbvhc's, whose leaves are the wide tree's).
+        const uint32_t max_leaf = options.bvh2_leaf_ranges ? uint32_t(kMaxLeafTriangles) : 1u;
+        scene.bvh2_leaf_ranges = options.bvh2_leaf_ranges;
         if (count == 1) {  // a 1-reference scene duplicates its leaf in both children
             const Box& b = ref_boxes[0];
+            const uint32_t lc = options.bvh2_leaf_ranges ? 1u : 0u;
             scene.bvh2.push_back(Bvh2Node{b.lo[0], b.hi[0], b.lo[1], b.hi[1], b.lo[0], b.hi[0], b.lo[1], b.hi[1],
-                                          b.lo[2], b.hi[2], b.lo[2], b.hi[2], {~0, ~0}, {0, 0}});
+                                          b.lo[2], b.hi[2], b.lo[2], b.hi[2], {~0, ~0}, {lc, lc}});
         } else {
-            build_bvh2(scene.bvh2, ref_boxes, 0, uint32_t(ref_boxes.size()));
+            build_bvh2(scene.bvh2, ref_boxes, 0, uint32_t(ref_boxes.size()), max_leaf);
         }
     }
     if (options.source_geometry && count > 0) {

@@ -33,7 +33,8 @@ Result validate_section(const FileLayout& layout, const SectionEntry& entry, boo
         case kSectionSourceMap: return check_source_map(layout, payload, n);
         case kSectionBounds: return check_bounds(payload);
         case kSectionBuildInfo: return check_build_info(payload);
-        case kSectionBvh2: return check_bvh2(layout, payload, n);
+        case kSectionBvh2: return check_bvh2(layout, payload, n, false);
+        case kSectionBvh2Leaves: return check_bvh2(layout, payload, n, true);
         case kSectionVertices: return check_vertices(payload, n);
         case kSectionIndices: return check_indices(layout, payload, n);
         case kSectionSourceNames: return check_source_names(payload);

@@ -33,7 +33,8 @@ Result check_triangles(const FileLayout& layout, std::span<const uint8_t> payloa
 Result check_source_map(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count);
 Result check_bounds(std::span<const uint8_t> payload);
 Result check_build_info(std::span<const uint8_t> payload);
-Result check_bvh2(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count);
+/// BVH2 (leaf_ranges false) or BV2L (true): the same record, rules 5601-5609.
+Result check_bvh2(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count, bool leaf_ranges);
 Result check_vertices(std::span<const uint8_t> payload, uint64_t count);
 Result check_indices(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count);
 Result check_source_names(std::span<const uint8_t> payload);

@@ -93,42 +93,59 @@ Result check_build_info(std::span<const uint8_t> payload) {
     return Result::success();
 }
 
-Result check_bvh2(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count) {
+Result check_bvh2(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count, bool leaf_ranges) {
+    const char* name = leaf_ranges ? "BV2L" : "BVH2";
     const uint64_t tri_count = count_of(layout, kSectionTriangles);
     std::vector<uint8_t> has_parent(count, 0);
     std::vector<uint8_t> depth(count, 1);  // root = 1; leaves count as a level
     for (uint64_t i = 0; i < count; ++i) {
         const auto n = load<Bvh2Node>(payload, i);
         if (depth[i] + 1u > kMaxBvh2Depth)
-            return element_error(rule::kBvh2Depth, "BVH2", "node", i, "has children at depth " +
+            return element_error(rule::kBvh2Depth, name, "node", i, "has children at depth " +
                                      to_string(depth[i] + 1u) + "; the tree may be at most " +
                                      to_string(kMaxBvh2Depth) + " levels deep");
-        if (n.reserved[0] != 0 || n.reserved[1] != 0)
-            return element_error(rule::kBvh2Reserved, "BVH2", "node", i, "reserved field is not 0");
+        if (!leaf_ranges && (n.leaf_count[0] != 0 || n.leaf_count[1] != 0))
+            return element_error(rule::kBvh2Reserved, name, "node", i, "reserved field is not 0");
         float box[12];
         std::memcpy(box, &n, sizeof box);  // the 12 box floats are the first 48 bytes
         if (!all_finite(box, 12))
-            return element_error(rule::kBvh2NonFinite, "BVH2", "node", i, "child box is not finite");
+            return element_error(rule::kBvh2NonFinite, name, "node", i, "child box is not finite");
         for (int c = 0; c < 2; ++c) {
             const int32_t child = n.child[c];
+            const uint32_t leaf_count = n.leaf_count[c];
             if (child < 0) {
-                const uint64_t leaf = uint64_t(uint32_t(~child));
-                if (leaf >= tri_count)
-                    return element_error(rule::kBvh2Leaf, "BVH2", "node", i, "leaf ~child = " + to_string(leaf) +
-                                             " is not below TRIS count " + to_string(tri_count));
+                const uint64_t first = uint64_t(uint32_t(~child));
+                if (!leaf_ranges) {
+                    if (first >= tri_count)
+                        return element_error(rule::kBvh2Leaf, name, "node", i, "leaf ~child = " + to_string(first) +
+                                                 " is not below TRIS count " + to_string(tri_count));
+                    continue;
+                }
+                if (leaf_count < 1 || leaf_count > kMaxBvh2LeafTriangles)
+                    return element_error(rule::kBvh2LeafCount, name, "node", i, "leaf child " + to_string(c) +
+                                             " has leaf_count " + to_string(leaf_count) + ", not 1.." +
+                                             to_string(kMaxBvh2LeafTriangles));
+                // first < 2^31 and leaf_count <= 4: the sum cannot overflow 64 bits.
+                if (first + leaf_count > tri_count)
+                    return element_error(rule::kBvh2LeafRange, name, "node", i, "leaf records " + to_string(first) +
+                                             ".." + to_string(first + leaf_count - 1) + " are not inside TRIS (" +
+                                             to_string(tri_count) + " records)");
                 continue;
             }
+            if (leaf_ranges && leaf_count != 0)
+                return element_error(rule::kBvh2InternalCount, name, "node", i, "internal child " + to_string(c) +
+                                         " has leaf_count " + to_string(leaf_count) + ", not 0");
             if (uint64_t(child) <= i || uint64_t(child) >= count)
-                return element_error(rule::kBvh2Child, "BVH2", "node", i, "child " + to_string(child) +
+                return element_error(rule::kBvh2Child, name, "node", i, "child " + to_string(child) +
                                          " is not in (" + to_string(i) + ", " + to_string(count) + ")");
             if (has_parent[child] != 0)
-                return element_error(rule::kBvh2Parents, "BVH2", "node", uint64_t(child), "has two parents");
+                return element_error(rule::kBvh2Parents, name, "node", uint64_t(child), "has two parents");
             has_parent[child] = 1;
             depth[child] = uint8_t(depth[i] + 1);
         }
     }
     for (uint64_t j = 1; j < count; ++j)
-        if (has_parent[j] == 0) return element_error(rule::kBvh2Parents, "BVH2", "node", j, "has no parent");
+        if (has_parent[j] == 0) return element_error(rule::kBvh2Parents, name, "node", j, "has no parent");
     return Result::success();
 }
 

@@ -115,11 +115,16 @@ Result check_counts(const FileLayout& layout) {
     if (count(kSectionBounds)->element_count != 1) return bad(kSectionBounds, "must hold exactly 1 element");
     if (const SectionEntry* e = count(kSectionBuildInfo); e && e->element_count != 1)
         return bad(kSectionBuildInfo, "must hold exactly 1 element");
-    if (const SectionEntry* e = count(kSectionBvh2)) {
-        if (e->element_count == 0) return bad(kSectionBvh2, "present but empty (the root, node 0, is required)");
-        if (e->element_count > 0x7FFFFFFFu) return bad(kSectionBvh2, "more than 2^31-1 nodes");
+    for (const uint32_t type : {kSectionBvh2, kSectionBvh2Leaves}) {
+        const SectionEntry* e = count(type);
+        if (e == nullptr) continue;
+        if (e->element_count == 0) return bad(type, "present but empty (the root, node 0, is required)");
+        if (e->element_count > 0x7FFFFFFFu) return bad(type, "more than 2^31-1 nodes");
         if (count(kSectionTriangles)->element_count > 0x80000000u)
-            return bad(kSectionBvh2, "TRIS has more records than a BVH2 leaf index can address");
+            return bad(type, "TRIS has more records than a binary BVH leaf index can address");
+        // BV2L: a traversal packs (first record << 2 | count - 1) into 31 bits (spec 4).
+        if (type == kSectionBvh2Leaves && count(kSectionTriangles)->element_count > kMaxBvh2LeafTris)
+            return bad(type, "TRIS has more than 2^29 records (the limit of a file with leaf ranges)");
     }
     if (const SectionEntry* e = count(kSectionVertices); e && e->element_count > 0x100000000u)
         return bad(kSectionVertices, "more than 2^32 vertices");

@@ -61,7 +61,12 @@ Result Writer::layout(FileHeader& header, std::vector<SectionEntry>& table) cons
     std::memset(&header, 0, sizeof header);
     std::memcpy(header.magic, kMagic, sizeof kMagic);
     header.version_major = kVersionMajor;
-    header.version_minor = kVersionMinor;
+    // The lowest minor that covers every known section written (spec 2.2): a file
+    // without 1.1 sections stays 1.0, byte for byte what a 1.0 writer made.
+    header.version_minor = 0;
+    for (const Pending& s : sections_)
+        if (const SectionInfo* info = find_section_info(s.type); info && info->since_minor > header.version_minor)
+            header.version_minor = info->since_minor;
     header.header_size = sizeof(FileHeader);
     header.section_count = uint32_t(sections_.size());
     header.section_table_offset = sizeof(FileHeader);

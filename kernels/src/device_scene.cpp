@@ -120,6 +120,11 @@ std::optional<DeviceScene> DeviceScene::upload(const CwbvhNode* node_ptr, size_t
         scene.tri_count_ = uint32_t(triangles.size());
         scene.bvh2_ = alloc_and_copy(bvh2, s, bytes);
         scene.bvh2_count_ = uint32_t(bvh2.size());
+        for (const Bvh2Node& n : bvh2)
+            if (n.leaf_count[0] != 0 || n.leaf_count[1] != 0) {
+                scene.bvh2_leaf_ranges_ = true;
+                break;
+            }
         if (s) s->finish();
         CWBVH_CUDA_CHECK(cudaDeviceSynchronize());
         scene.stats_.bytes = bytes;
@@ -141,6 +146,7 @@ DeviceScene::DeviceScene(DeviceScene&& o) noexcept
       node_count_(std::exchange(o.node_count_, 0)),
       tri_count_(std::exchange(o.tri_count_, 0)),
       bvh2_count_(std::exchange(o.bvh2_count_, 0)),
+      bvh2_leaf_ranges_(std::exchange(o.bvh2_leaf_ranges_, false)),
       device_(std::exchange(o.device_, -1)),
       stats_(o.stats_) {}
 
@@ -153,6 +159,7 @@ DeviceScene& DeviceScene::operator=(DeviceScene&& o) noexcept {
         node_count_ = std::exchange(o.node_count_, 0);
         tri_count_ = std::exchange(o.tri_count_, 0);
         bvh2_count_ = std::exchange(o.bvh2_count_, 0);
+        bvh2_leaf_ranges_ = std::exchange(o.bvh2_leaf_ranges_, false);
         device_ = std::exchange(o.device_, -1);
         stats_ = o.stats_;
     }
@@ -174,6 +181,7 @@ void DeviceScene::release() noexcept {
     tris_ = nullptr;
     bvh2_ = nullptr;
     node_count_ = tri_count_ = bvh2_count_ = 0;
+    bvh2_leaf_ranges_ = false;
 }
 
 }  // namespace cwbvh

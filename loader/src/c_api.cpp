@@ -89,7 +89,10 @@ cwbvh_status cwbvh_source_of(const cwbvh_file* f, uint32_t prim, cwbvh_source_re
 }
 const float* cwbvh_bounds(const cwbvh_file* f) { return section_ptr<float>(f, cwbvh::kSectionBounds, nullptr, 24); }
 const void* cwbvh_build_info(const cwbvh_file* f) { return section_ptr<void>(f, cwbvh::kSectionBuildInfo, nullptr, 256); }
-const void* cwbvh_bvh2(const cwbvh_file* f, uint64_t* n) { return section_ptr<void>(f, cwbvh::kSectionBvh2, n, 64); }
+const void* cwbvh_bvh2(const cwbvh_file* f, uint64_t* n) {
+    const void* ranges = section_ptr<void>(f, cwbvh::kSectionBvh2Leaves, n, 64);
+    return ranges != nullptr ? ranges : section_ptr<void>(f, cwbvh::kSectionBvh2, n, 64);
+}
 const float* cwbvh_vertices(const cwbvh_file* f, uint64_t* n) {
     return section_ptr<float>(f, cwbvh::kSectionVertices, n, 12);
 }

@@ -62,6 +62,8 @@ TEST(Spec, LayoutTablesMatchStructs) {
     CWBVH_ROW(BuildInfo, wide_nodes, "`wide_nodes`");
     CWBVH_ROW(BuildInfo, sah_binary, "`sah_binary`");
     CWBVH_ROW(BuildInfo, reserved, "`reserved`");
+    CWBVH_ROW(Bvh2Node, child, "`child[2]`");
+    CWBVH_ROW(Bvh2Node, leaf_count, "`leaf_count[2]`");
 #undef CWBVH_ROW
     EXPECT_TRUE(has_row(offsetof(CwbvhNode, q_hi) + 16, 8, "`q_hi[2]`"));
 }

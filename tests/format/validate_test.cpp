@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <utility>
 
 #include "cwbvh/node_decode.h"
 #include "format/test_util.h"
@@ -269,7 +270,7 @@ TEST(Validate, OtherSectionContent) {
     test::edit_element<Bvh2Node>(g, kSectionBvh2, 0, [](Bvh2Node& n) { n.child[0] = ~1000; });
     EXPECT_RULE(check(g), rule::kBvh2Leaf);
     g = f;
-    test::edit_element<Bvh2Node>(g, kSectionBvh2, 0, [](Bvh2Node& n) { n.reserved[1] = 1; });
+    test::edit_element<Bvh2Node>(g, kSectionBvh2, 0, [](Bvh2Node& n) { n.leaf_count[1] = 1; });
     EXPECT_RULE(check(g), rule::kBvh2Reserved);
     g = f;
     test::edit_element<Bvh2Node>(g, kSectionBvh2, 0, [](Bvh2Node& n) { n.c1_hi_y = -INFINITY; });
@@ -283,6 +284,110 @@ TEST(Validate, OtherSectionContent) {
     g = f;
     test::edit_element<char>(g, kSectionSourceNames, 9, [](char& c) { c = 'x'; });
     EXPECT_RULE(check(g), rule::kNamesTerminator);
+}
+
+/// A file whose binary BVH is a BV2L section (leaf ranges of up to 3 records).
+std::vector<uint8_t> leaf_range_file(uint32_t triangles = 40) {
+    SyntheticOptions o;
+    o.triangles = triangles;
+    o.bvh2_leaf_ranges = true;
+    return test::file_bytes(make_synthetic_scene(o));
+}
+
+/// Index of the first BV2L node with a leaf child, and that child.
+std::pair<uint64_t, int> first_leaf_child(const std::vector<uint8_t>& f) {
+    const SectionEntry e = entry(f, find_entry(f, kSectionBvh2Leaves));
+    for (uint64_t i = 0; i < e.element_count; ++i) {
+        Bvh2Node n;
+        std::memcpy(&n, f.data() + e.offset + i * sizeof n, sizeof n);
+        for (int c = 0; c < 2; ++c)
+            if (n.child[c] < 0) return {i, c};
+    }
+    throw std::runtime_error("no leaf child");
+}
+
+TEST(Validate, LeafRangeSection) {
+    const std::vector<uint8_t> f = leaf_range_file();
+    ASSERT_TRUE(check(f).ok()) << check(f).describe();
+    EXPECT_EQ(header_of(f).version_minor, 1u) << "a file with BV2L is format 1.1";
+    EXPECT_EQ(header_of(test::synthetic_file()).version_minor, 0u) << "a file without 1.1 sections stays 1.0";
+    const auto [leaf_node, leaf_c] = first_leaf_child(f);
+    const uint32_t tris = uint32_t(entry(f, find_entry(f, kSectionTriangles)).element_count);
+    auto edit = [&](auto fn) {
+        auto g = f;
+        test::edit_element<Bvh2Node>(g, kSectionBvh2Leaves, leaf_node, fn);
+        return g;
+    };
+    const int c = leaf_c;
+    // Counts outside 1..4.
+    EXPECT_RULE(check(edit([&](Bvh2Node& n) { n.leaf_count[c] = 0; })), rule::kBvh2LeafCount);
+    EXPECT_RULE(check(edit([&](Bvh2Node& n) { n.leaf_count[c] = kMaxBvh2LeafTriangles + 1; })), rule::kBvh2LeafCount);
+    EXPECT_TRUE(check(edit([&](Bvh2Node& n) { n.leaf_count[c] = 1; })).ok()) << "a shorter range is still valid";
+    // Ranges past the end of TRIS.
+    EXPECT_RULE(check(edit([&](Bvh2Node& n) { n.child[c] = ~int32_t(tris - 1); n.leaf_count[c] = 2; })),
+                rule::kBvh2LeafRange);
+    EXPECT_TRUE(check(edit([&](Bvh2Node& n) { n.child[c] = ~int32_t(tris - 2); n.leaf_count[c] = 2; })).ok());
+    EXPECT_RULE(check(edit([&](Bvh2Node& n) { n.child[c] = ~int32_t(tris); n.leaf_count[c] = 1; })),
+                rule::kBvh2LeafRange);
+    // An internal child with a count.
+    {
+        auto g = f;
+        test::edit_element<Bvh2Node>(g, kSectionBvh2Leaves, 0, [](Bvh2Node& n) {
+            for (int k = 0; k < 2; ++k)
+                if (n.child[k] >= 0) n.leaf_count[k] = 1;
+        });
+        EXPECT_RULE(check(g), rule::kBvh2InternalCount);
+    }
+    // The rules shared with BVH2 apply too.
+    EXPECT_RULE(check(edit([](Bvh2Node& n) { n.c0_lo_y = NAN; })), rule::kBvh2NonFinite);
+    {
+        auto g = f;
+        test::edit_element<Bvh2Node>(g, kSectionBvh2Leaves, 0, [](Bvh2Node& n) {
+            n.child[0] = 0;
+            n.leaf_count[0] = 0;
+        });
+        EXPECT_RULE(check(g), rule::kBvh2Child);
+    }
+    // Section table: empty, and more TRIS records than a packed leaf allows.
+    {
+        auto g = f;
+        const uint32_t i = find_entry(g, kSectionBvh2Leaves);
+        SectionEntry e = entry(g, i);
+        e.element_count = 0;
+        e.size = 0;
+        set_entry(g, i, e);
+        reseal(g);
+        EXPECT_FALSE(check(g).ok());
+    }
+    {
+        auto g = f;
+        const uint32_t i = find_entry(g, kSectionTriangles);
+        SectionEntry e = entry(g, i);
+        e.element_count = kMaxBvh2LeafTris + 1;  // size no longer matches: caught by 4004 first
+        EXPECT_LT(tris, kMaxBvh2LeafTris);
+        set_entry(g, i, e);
+        reseal(g);
+        EXPECT_FALSE(check(g).ok());
+    }
+}
+
+TEST(Validate, LegacyAndLeafRangeSectionsTogether) {
+    // Both binary sections in one file: each is checked by its own rules.
+    SyntheticOptions o;
+    o.triangles = 30;
+    o.bvh2_leaf_ranges = true;
+    SceneData ranges = make_synthetic_scene(o);
+    o.bvh2_leaf_ranges = false;
+    const SceneData legacy = make_synthetic_scene(o);
+    Writer w;
+    add_scene_sections(w, ranges);
+    w.add_array<Bvh2Node>(kSectionBvh2, 0, legacy.bvh2);
+    std::vector<uint8_t> f;
+    ASSERT_TRUE(w.to_bytes(f).ok());
+    EXPECT_TRUE(check(f).ok()) << check(f).describe();
+    auto g = f;
+    test::edit_element<Bvh2Node>(g, kSectionBvh2, 0, [](Bvh2Node& n) { n.leaf_count[0] = 2; });
+    EXPECT_RULE(check(g), rule::kBvh2Reserved);
 }
 
 TEST(Validate, WithoutChecksumsStructureIsStillChecked) {

@@ -54,6 +54,27 @@ std::vector<Vector> make_vectors() {
     const SceneData small = make_synthetic_scene(o);
     v.push_back({"two_level", file_bytes(small)});
 
+    // Format 1.1: the binary BVH as BV2L, leaves of up to 3 consecutive records.
+    SyntheticOptions lr;
+    lr.triangles = 10;
+    lr.source_geometry = false;
+    lr.bvh2_leaf_ranges = true;
+    const SceneData ranges = make_synthetic_scene(lr);
+    v.push_back({"leaf_ranges", file_bytes(ranges)});
+    {  // the root's first leaf child reaches one record past the end of TRIS
+        std::vector<uint8_t> f = file_bytes(ranges);
+        const uint32_t tris = uint32_t(ranges.triangles.size());
+        uint64_t node = 0;
+        int child = -1;
+        for (uint64_t i = 0; i < ranges.bvh2.size() && child < 0; ++i)
+            for (int c = 0; c < 2 && child < 0; ++c)
+                if (ranges.bvh2[i].child[c] < 0) node = i, child = c;
+        edit_element<Bvh2Node>(f, kSectionBvh2Leaves, node, [&](Bvh2Node& n) {
+            n.child[child] = ~int32_t(tris - 1);
+            n.leaf_count[child] = 2;
+        });
+        v.push_back({"invalid_5608_leaf_range", f});
+    }
     {  // root child_base points at the root itself
         std::vector<uint8_t> f = file_bytes(small);
         edit_element<CwbvhNode>(f, kSectionNodes, 0, [](CwbvhNode& n) { n.child_base = 0; });

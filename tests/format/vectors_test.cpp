@@ -93,10 +93,31 @@ TEST(Vectors, SingleTriangleDecodesAsTheSpecSays) {
 TEST(Vectors, InvalidOnesFailWithTheirRule) {
     for (const auto& [name, rule_id] : {std::pair<const char*, uint32_t>{"invalid_5105_child_order", 5105},
                                        {"invalid_2003_major_version", 2003},
-                                       {"invalid_3002_truncated", 3002}}) {
+                                       {"invalid_3002_truncated", 3002},
+                                       {"invalid_5608_leaf_range", 5608}}) {
         const std::string bytes = read_text(kDir + name + ".cwbvh");
         EXPECT_EQ(validate(std::vector<uint8_t>(bytes.begin(), bytes.end())).rule, rule_id) << name;
     }
+}
+
+TEST(Vectors, LeafRangesIsFormat11WithABv2lSection) {
+    const std::string bytes = read_text(kDir + "leaf_ranges.cwbvh");
+    const std::vector<uint8_t> f(bytes.begin(), bytes.end());
+    FileLayout l;
+    ASSERT_TRUE(validate(f, {}, &l).ok());
+    EXPECT_EQ(l.header.version_minor, 1u);
+    ASSERT_NE(l.find(kSectionBvh2Leaves), nullptr);
+    EXPECT_EQ(l.find(kSectionBvh2), nullptr);
+    // The leaves tile TRIS: every record in exactly one leaf range.
+    const SectionEntry& e = *l.find(kSectionBvh2Leaves);
+    std::vector<int> covered(l.find(kSectionTriangles)->element_count, 0);
+    for (uint64_t i = 0; i < e.element_count; ++i) {
+        Bvh2Node n;
+        std::memcpy(&n, l.payload(e).data() + i * sizeof n, sizeof n);
+        for (int c = 0; c < 2; ++c)
+            for (uint32_t k = 0; n.child[c] < 0 && k < n.leaf_count[c]; ++k) ++covered.at(uint32_t(~n.child[c]) + k);
+    }
+    for (int c : covered) EXPECT_EQ(c, 1);
 }
 
 TEST(FuzzCorpus, ReplaysThroughTheValidator) {

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstring>
 #include <filesystem>
+#include <map>
 
 #include "cwbvh/compiler/auction.h"
 #include "cwbvh/compiler/collapse.h"
@@ -32,6 +33,8 @@ void run(const Scene& scene, const BinaryBvh& binary, CollapseKind kind, Pipelin
     ASSERT_TRUE(verify_encoded(p.tree, p.wide, scene, error)) << error;
     ASSERT_TRUE(encode_bvh2(p.binary, p.wide, p.tree, p.tree.bvh2, error)) << error;
 }
+
+void expect_bvh2_is_cut_at_wide_leaves(const Scene& scene, const Pipeline& p);
 
 TEST(Encode, MetaImaskAndBases) {
     // Root with: slot 1 internal, slot 3 leaf of 2, slot 4 internal, slot 6 leaf of 3.
@@ -112,46 +115,107 @@ TEST(Encode, SmallScenesAndSingleTriangle) {
             ASSERT_EQ(p.tree.bvh2.size(), 1u);
             EXPECT_EQ(p.tree.bvh2[0].child[0], ~0);
             EXPECT_EQ(p.tree.bvh2[0].child[1], ~0);
+            EXPECT_EQ(p.tree.bvh2[0].leaf_count[0], 1u);
+            EXPECT_EQ(p.tree.bvh2[0].leaf_count[1], 1u);
         }
+        expect_bvh2_is_cut_at_wide_leaves(scene, p);
     }
 }
 
-TEST(Encode, Bvh2LeavesPointAtTheirTriangles) {
+/// Checks a BV2L section against the pipeline it came from: the tree keeps the
+/// binary nodes above the wide leaves; every leaf child is one wide leaf (same
+/// records, count and exact box); the leaf ranges cover every TRIS record exactly
+/// once; every leaf's triangles lie in its box (the test builder's boxes are whole
+/// triangle boxes); internal children are well formed.
+void expect_bvh2_is_cut_at_wide_leaves(const Scene& scene, const Pipeline& p) {
+    const auto& b = p.tree.bvh2;
+    // Wide leaves by first TRIS record.
+    struct WideLeaf {
+        uint32_t count;
+        compiler::Aabb box;
+        int seen = 0;
+    };
+    std::map<uint32_t, WideLeaf> wide_leaves;
+    for (const WideNode& n : p.wide.nodes)
+        for (const WideChild& c : n.slots)
+            if (c.kind == WideChild::kLeaf) wide_leaves[p.tree.ref_to_tri[c.first_ref]] = {c.ref_count, c.box};
+    size_t binary_internal = 0;
+    for (const auto& n : p.binary.nodes) binary_internal += !n.is_leaf();
+    EXPECT_LE(b.size(), std::max<size_t>(binary_internal, 1));  // 1: a single-leaf tree
+    std::vector<int> covered(p.tree.triangles.size(), 0);
+    std::vector<int> parents(b.size(), 0);
+    for (size_t i = 0; i < b.size(); ++i) {
+        for (int c = 0; c < 2; ++c) {
+            const float lo[3] = {c ? b[i].c1_lo_x : b[i].c0_lo_x, c ? b[i].c1_lo_y : b[i].c0_lo_y,
+                                 c ? b[i].c1_lo_z : b[i].c0_lo_z};
+            const float hi[3] = {c ? b[i].c1_hi_x : b[i].c0_hi_x, c ? b[i].c1_hi_y : b[i].c0_hi_y,
+                                 c ? b[i].c1_hi_z : b[i].c0_hi_z};
+            if (b[i].child[c] >= 0) {
+                EXPECT_EQ(b[i].leaf_count[c], 0u);
+                EXPECT_GT(b[i].child[c], int32_t(i));
+                ASSERT_LT(size_t(b[i].child[c]), b.size());
+                ++parents[size_t(b[i].child[c])];
+                continue;
+            }
+            const uint32_t first = uint32_t(~b[i].child[c]), count = b[i].leaf_count[c];
+            ASSERT_TRUE(wide_leaves.count(first)) << "leaf at record " << first << " is not a wide leaf";
+            WideLeaf& w = wide_leaves[first];
+            ++w.seen;
+            EXPECT_EQ(count, w.count);
+            EXPECT_GE(count, 1u);
+            EXPECT_LE(count, uint32_t(kMaxLeafTriangles));
+            for (int a = 0; a < 3; ++a) {
+                EXPECT_EQ(lo[a], w.box.lo[a]);
+                EXPECT_EQ(hi[a], w.box.hi[a]);
+            }
+            for (uint32_t k = 0; k < count; ++k) {
+                ASSERT_LT(first + k, p.tree.triangles.size());
+                ++covered[first + k];
+                const TriangleRecord& t = p.tree.triangles[first + k];
+                for (const float* v : {t.v0, t.v1, t.v2})
+                    for (int a = 0; a < 3; ++a) {
+                        EXPECT_LE(lo[a], v[a]);
+                        EXPECT_GE(hi[a], v[a]);
+                    }
+            }
+        }
+    }
+    for (size_t j = 1; j < b.size(); ++j) EXPECT_EQ(parents[j], 1) << "node " << j;
+    const bool single_leaf = b.size() == 1 && b[0].child[0] < 0 && b[0].child[0] == b[0].child[1];
+    for (size_t t = 0; t < covered.size(); ++t) EXPECT_EQ(covered[t], single_leaf ? 2 : 1) << "record " << t;
+    for (const auto& [first, w] : wide_leaves) EXPECT_EQ(w.seen, single_leaf ? 2 : 1) << "wide leaf " << first;
+    (void)scene;
+}
+
+TEST(Encode, Bvh2LeavesAreTheWideLeaves) {
     const Scene scene = wide_test::random_scene(2000, 5);
     std::vector<uint32_t> refs;
     for (uint32_t i = 0; i < 2000; ++i) refs.push_back(i);
     for (uint32_t i = 0; i < 300; ++i) refs.push_back(i * 7 % 2000);  // duplicates
-    Pipeline p;
-    run(scene, wide_test::build_binary(scene, refs, wide_test::SplitMode::kMedian), kCollapseOptimal, p);
-    const auto& b = p.tree.bvh2;
-    size_t internal = 0, leaves = 0;
-    for (const auto& n : p.binary.nodes) (n.is_leaf() ? leaves : internal)++;
-    ASSERT_EQ(b.size(), internal);
-    std::vector<uint32_t> bin_index;  // bvh2 index -> binary node
-    for (uint32_t i = 0; i < p.binary.nodes.size(); ++i)
-        if (!p.binary.nodes[i].is_leaf()) bin_index.push_back(i);
-    size_t leaf_children = 0;
-    for (size_t i = 0; i < b.size(); ++i) {
-        const BinaryNode& bn = p.binary.nodes[bin_index[i]];
-        EXPECT_EQ(b[i].reserved[0], 0u);
-        for (int c = 0; c < 2; ++c) {
-            const BinaryNode& ch = p.binary.nodes[bn.child[c]];
-            const float lo_x = c == 0 ? b[i].c0_lo_x : b[i].c1_lo_x;
-            const float hi_z = c == 0 ? b[i].c0_hi_z : b[i].c1_hi_z;
-            EXPECT_EQ(lo_x, ch.box.lo[0]);
-            EXPECT_EQ(hi_z, ch.box.hi[2]);
-            if (b[i].child[c] < 0) {
-                ++leaf_children;
-                const uint32_t t = uint32_t(~b[i].child[c]);
-                ASSERT_LT(t, p.tree.triangles.size());
-                EXPECT_EQ(p.tree.triangles[t].prim, ch.prim);
-            } else {
-                EXPECT_GT(b[i].child[c], int32_t(i));
-                EXPECT_EQ(bin_index[size_t(b[i].child[c])], bn.child[c]);
-            }
+    for (const auto mode : {wide_test::SplitMode::kMedian, wide_test::SplitMode::kRandom}) {
+        for (const CollapseKind kind : {kCollapseOptimal, kCollapseGreedy}) {
+            Pipeline p;
+            run(scene, wide_test::build_binary(scene, refs, mode), kind, p);
+            expect_bvh2_is_cut_at_wide_leaves(scene, p);
+            size_t leaves = 0;
+            for (const WideNode& n : p.wide.nodes)
+                for (const WideChild& c : n.slots) leaves += c.kind == WideChild::kLeaf;
+            // A binary tree over L leaves has L - 1 internal nodes.
+            EXPECT_EQ(p.tree.bvh2.size() + 1, leaves);
+            // Fewer nodes than the binary tree's internal ones: leaves of 1-3 triangles.
+            EXPECT_LT(p.tree.bvh2.size(), p.binary.nodes.size() / 2);
         }
     }
-    EXPECT_EQ(leaf_children, leaves);
+}
+
+TEST(Encode, Bvh2SmallAndChainTrees) {
+    for (size_t n : {1, 2, 3, 4, 5, 9, 30}) {
+        SCOPED_TRACE(n);
+        const Scene scene = wide_test::random_scene(n, 3);
+        Pipeline p;
+        run(scene, wide_test::build_binary(scene, wide_test::SplitMode::kChain), kCollapseOptimal, p);
+        expect_bvh2_is_cut_at_wide_leaves(scene, p);
+    }
 }
 
 TEST(Encode, VerifyDetectsCorruption) {

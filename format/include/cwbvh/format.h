@@ -20,7 +20,10 @@ namespace cwbvh {
 inline constexpr uint8_t kMagic[12] = {0xAB, 'C', 'W', 'B', 'V', 'H',
                                         0xBB, 0x0D, 0x0A, 0x1A, 0x0A, 0x00};
 inline constexpr uint16_t kVersionMajor = 1;
-inline constexpr uint16_t kVersionMinor = 0;
+/// Newest minor this code writes and knows (a writer stamps the lowest minor
+/// that covers the sections it writes: sections.h, SectionInfo::since_minor).
+/// 1.1 added the optional BV2L section.
+inline constexpr uint16_t kVersionMinor = 1;
 /// Every section's offset is a multiple of this (cache line; mmap-friendly;
 /// lets a GPU copy a section with aligned 16-byte vector loads).
 inline constexpr uint64_t kSectionAlignment = 64;
@@ -66,7 +69,8 @@ enum SectionType : uint32_t {
     kSectionSourceMap = fourcc('P', 'M', 'A', 'P'),  ///< SourceRange[] runs of stored triangles, required
     kSectionBounds = fourcc('B', 'N', 'D', 'S'),     ///< SceneBounds[1], required
     kSectionBuildInfo = fourcc('B', 'I', 'L', 'D'),  ///< BuildInfo[1], optional
-    kSectionBvh2 = fourcc('B', 'V', 'H', '2'),       ///< Bvh2Node[] (binary SBVH), optional
+    kSectionBvh2 = fourcc('B', 'V', 'H', '2'),       ///< Bvh2Node[] (binary SBVH, 1 triangle per leaf), optional
+    kSectionBvh2Leaves = fourcc('B', 'V', '2', 'L'), ///< Bvh2Node[] with leaf ranges (format 1.1), optional
     kSectionVertices = fourcc('V', 'E', 'R', 'T'),   ///< float[3][] source vertices, optional
     kSectionIndices = fourcc('I', 'N', 'D', 'X'),    ///< uint32_t[3][] per stored triangle, optional
     kSectionSourceNames = fourcc('S', 'R', 'C', 'N'),///< NUL-terminated UTF-8 input names, optional
@@ -196,22 +200,37 @@ struct SceneBounds {
 static_assert(sizeof(SceneBounds) == 24);
 
 // ---------------------------------------------------------------------------
-// BVH2: binary SBVH nodes in the layout of Aila & Laine's kernels
+// BVH2 / BV2L: binary BVH nodes in the layout of Aila, Laine & Karras's kernels
 // ---------------------------------------------------------------------------
 
-/// child[i] >= 0: index of an internal node; child[i] < 0: a leaf holding the
-/// single triangle record TRIS[~child[i]]. Root is node 0 and is internal.
+/// The same 64-byte record serves two optional sections (spec 3.6):
+///   BVH2 (1.0): child[i] >= 0: index of an internal node; child[i] < 0: a leaf
+///               holding the single record TRIS[~child[i]]; leaf_count[] is
+///               reserved and must be 0.
+///   BV2L (1.1): a leaf child holds leaf_count[i] (1..kMaxBvh2LeafTriangles)
+///               consecutive records TRIS[~child[i] ..]; leaf_count[i] is 0 for
+///               an internal child.
+/// Root is node 0 and is internal. Traversals read a leaf count of 0 as 1, so
+/// one loop serves both sections.
 struct Bvh2Node {
     float c0_lo_x, c0_hi_x, c0_lo_y, c0_hi_y;
     float c1_lo_x, c1_hi_x, c1_lo_y, c1_hi_y;
     float c0_lo_z, c0_hi_z, c1_lo_z, c1_hi_z;
     int32_t child[2];
-    uint32_t reserved[2];  ///< must be 0
+    uint32_t leaf_count[2];  ///< BV2L: TRIS records of a leaf child, 0 for an internal one; BVH2: 0
 };
 static_assert(sizeof(Bvh2Node) == 64);
 static_assert(offsetof(Bvh2Node, c1_lo_x) == 16);
 static_assert(offsetof(Bvh2Node, c0_lo_z) == 32);
 static_assert(offsetof(Bvh2Node, child) == 48);
+static_assert(offsetof(Bvh2Node, leaf_count) == 56);
+
+/// Most TRIS records in one BV2L leaf (rule 5607). Two bits: a traversal packs a
+/// leaf's first record and count - 1 into one 32-bit stack entry (bvh2_lane.h).
+inline constexpr uint32_t kMaxBvh2LeafTriangles = 4;
+/// Most TRIS records a file with a BV2L section may have (rule 4011): the first
+/// record of a leaf shifted left by 2 still fits the 31 bits of a negative child.
+inline constexpr uint64_t kMaxBvh2LeafTris = uint64_t(1) << 29;
 
 // ---------------------------------------------------------------------------
 // BILD: build parameters and statistics (no timings: files are deterministic)

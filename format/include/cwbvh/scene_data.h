@@ -18,7 +18,8 @@ struct SceneData {
     std::vector<SourceRange> source_ranges;  ///< PMAP (make_source_ranges builds it)
     SceneBounds bounds{};                    ///< BNDS
     std::optional<BuildInfo> build_info;     ///< BILD (absent if nullopt)
-    std::vector<Bvh2Node> bvh2;              ///< BVH2 (absent if empty)
+    std::vector<Bvh2Node> bvh2;              ///< BVH2 or BV2L (absent if empty)
+    bool bvh2_leaf_ranges = false;           ///< write `bvh2` as BV2L (leaf ranges) instead of BVH2
     std::vector<float> vertices;             ///< VERT, 3 floats per vertex (absent if empty)
     std::vector<uint32_t> indices;           ///< INDX, 3 per stored triangle (absent if empty)
     std::string source_names;                ///< SRCN, names each followed by '\0' (absent if empty)

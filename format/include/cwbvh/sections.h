@@ -17,7 +17,7 @@ enum SectionMask : uint32_t {
     kMaskSourceMap = 1u << 2,
     kMaskBounds = 1u << 3,
     kMaskBuildInfo = 1u << 4,
-    kMaskBvh2 = 1u << 5,
+    kMaskBvh2 = 1u << 5,  ///< both binary BVH sections, BVH2 and BV2L (File::bvh2() gives the one present)
     kMaskVertices = 1u << 6,
     kMaskIndices = 1u << 7,
     kMaskSourceNames = 1u << 8,
@@ -30,19 +30,21 @@ struct SectionInfo {
     uint32_t element_size;  ///< the only element size a version-1 reader accepts
     bool mandatory;         ///< a valid file contains it (writers set kSectionRequired)
     const char* description;
+    uint16_t since_minor;   ///< format 1.x that added the type; a writer stamps the largest among its sections
 };
 
 /// Known section types in spec order.
 inline constexpr SectionInfo kKnownSections[] = {
-    {kSectionNodes, kMaskNodes, sizeof(CwbvhNode), true, "compressed wide BVH nodes"},
-    {kSectionTriangles, kMaskTriangles, sizeof(TriangleRecord), true, "triangle records in leaf order"},
-    {kSectionSourceMap, kMaskSourceMap, sizeof(SourceRange), true, "stored triangle runs -> source primitive"},
-    {kSectionBounds, kMaskBounds, sizeof(SceneBounds), true, "scene bounds"},
-    {kSectionBuildInfo, kMaskBuildInfo, sizeof(BuildInfo), false, "build parameters and statistics"},
-    {kSectionBvh2, kMaskBvh2, sizeof(Bvh2Node), false, "binary BVH (Aila-Laine layout)"},
-    {kSectionVertices, kMaskVertices, 12, false, "source vertices (float[3])"},
-    {kSectionIndices, kMaskIndices, 12, false, "source vertex indices (uint32[3]) per stored triangle"},
-    {kSectionSourceNames, kMaskSourceNames, 1, false, "NUL-terminated input file names"},
+    {kSectionNodes, kMaskNodes, sizeof(CwbvhNode), true, "compressed wide BVH nodes", 0},
+    {kSectionTriangles, kMaskTriangles, sizeof(TriangleRecord), true, "triangle records in leaf order", 0},
+    {kSectionSourceMap, kMaskSourceMap, sizeof(SourceRange), true, "stored triangle runs -> source primitive", 0},
+    {kSectionBounds, kMaskBounds, sizeof(SceneBounds), true, "scene bounds", 0},
+    {kSectionBuildInfo, kMaskBuildInfo, sizeof(BuildInfo), false, "build parameters and statistics", 0},
+    {kSectionBvh2, kMaskBvh2, sizeof(Bvh2Node), false, "binary BVH, one triangle per leaf (Aila-Laine layout)", 0},
+    {kSectionBvh2Leaves, kMaskBvh2, sizeof(Bvh2Node), false, "binary BVH with leaf ranges (Aila-Laine layout)", 1},
+    {kSectionVertices, kMaskVertices, 12, false, "source vertices (float[3])", 0},
+    {kSectionIndices, kMaskIndices, 12, false, "source vertex indices (uint32[3]) per stored triangle", 0},
+    {kSectionSourceNames, kMaskSourceNames, 1, false, "NUL-terminated input file names", 0},
 };
 
 /// The entry of kKnownSections for `type`, or nullptr for an unknown type.

@@ -87,13 +87,16 @@ inline constexpr uint32_t kPmapRangeLimit = 5304;
 inline constexpr uint32_t kBoundsInvalid = 5401;
 // 55xx: BILD
 inline constexpr uint32_t kBuildReserved = 5501;
-// 56xx: BVH2
+// 56xx: BVH2 and BV2L (the same 64-byte record; 5602/5603 are BVH2's, 5607-5609 BV2L's)
 inline constexpr uint32_t kBvh2Child = 5601;
 inline constexpr uint32_t kBvh2Leaf = 5602;
 inline constexpr uint32_t kBvh2Reserved = 5603;
 inline constexpr uint32_t kBvh2NonFinite = 5604;
 inline constexpr uint32_t kBvh2Parents = 5605;
 inline constexpr uint32_t kBvh2Depth = 5606;
+inline constexpr uint32_t kBvh2LeafCount = 5607;
+inline constexpr uint32_t kBvh2LeafRange = 5608;
+inline constexpr uint32_t kBvh2InternalCount = 5609;
 // 57xx: VERT
 inline constexpr uint32_t kVertNonFinite = 5701;
 // 58xx: INDX
@@ -111,7 +114,7 @@ inline constexpr uint32_t kAll[] = {
     kNodeImask, kNodeChildRange, kNodeChildOrder, kNodeParents, kNodeLeafRange, kNodeLeafLayout,
     kNodeTriangleUse, kNodePlaneOrder, kNodeEmptySlot, kNodeNonFinite, kNodeDepth, kTriPrim, kTriNonFinite,
     kPmapInput, kPmapRangeEmpty, kPmapRangeOrder, kPmapRangeLimit, kBoundsInvalid, kBuildReserved, kBvh2Child, kBvh2Leaf, kBvh2Reserved, kBvh2NonFinite,
-    kBvh2Parents, kBvh2Depth, kVertNonFinite, kIndexRange, kIndexCount, kNamesTerminator,
+    kBvh2Parents, kBvh2Depth, kBvh2LeafCount, kBvh2LeafRange, kBvh2InternalCount, kVertNonFinite, kIndexRange, kIndexCount, kNamesTerminator,
 };
 }  // namespace rule
 

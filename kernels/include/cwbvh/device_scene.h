@@ -1,5 +1,6 @@
 // cwbvh::DeviceScene: the traversal sections of a validated .cwbvh file in GPU
-// memory (NODE + TRIS, optionally BVH2). Move-only RAII; frees on destruction.
+// memory (NODE + TRIS, optionally the binary BVH: BV2L, or a legacy BVH2 section;
+// the BVH2 kernel reads both). Move-only RAII; frees on destruction.
 // Plain C++ header: no CUDA types, so callers need not be compiled by nvcc.
 //
 // Upload method (UploadMethod::kPinnedStaging, the default):
@@ -35,7 +36,7 @@ inline constexpr size_t kStagingChunkBytes = size_t(8) << 20;  ///< per pinned s
 inline constexpr size_t kStagingMinBytes = size_t(1) << 20;    ///< smaller sections: plain cudaMemcpy
 
 struct UploadOptions {
-    bool bvh2 = true;  ///< also upload BVH2 when the file has it (needed by trace_bvh2)
+    bool bvh2 = true;  ///< also upload the binary BVH (BV2L or BVH2: File::bvh2()) when the file has one (trace_bvh2)
     UploadMethod method = UploadMethod::kPinnedStaging;
     int device = -1;   ///< CUDA device ordinal; -1: the calling thread's current device
 };
@@ -47,12 +48,13 @@ struct UploadStats {
 
 class DeviceScene {
 public:
-    /// Uploads NODE + TRIS (+ BVH2) of a validated File. On failure returns nullopt
+    /// Uploads NODE + TRIS (+ File::bvh2(): BV2L, else BVH2) of a validated File. On failure returns nullopt
     /// and sets error (no GPU, old driver, out of memory, ... with file:line).
     static std::optional<DeviceScene> upload(const File& file, std::string& error,
                                              const UploadOptions& options = {});
     /// Same from raw sections (the C API and tests use this). The sections must be
     /// valid (as validated by the loader): the kernels check indices but trust boxes.
+    /// bvh2 may be either binary section (a legacy BVH2's leaf_count fields are 0).
     /// (Pointer + count, not std::span: this header is also compiled as C++17 by nvcc.)
     static std::optional<DeviceScene> upload(const CwbvhNode* nodes, size_t node_count,
                                              const TriangleRecord* triangles, size_t triangle_count,
@@ -74,6 +76,8 @@ public:
     uint32_t triangle_count() const { return tri_count_; }
     uint32_t bvh2_count() const { return bvh2_count_; }
     bool has_bvh2() const { return bvh2_ != nullptr; }
+    /// The binary BVH has multi-record leaves (BV2L): some leaf_count is nonzero.
+    bool bvh2_leaf_ranges() const { return bvh2_leaf_ranges_; }
     uint64_t node_bytes() const { return uint64_t(node_count_) * sizeof(CwbvhNode); }
     uint64_t triangle_bytes() const { return uint64_t(tri_count_) * sizeof(TriangleRecord); }
     uint64_t bvh2_bytes() const { return uint64_t(bvh2_count_) * sizeof(Bvh2Node); }
@@ -88,6 +92,7 @@ private:
     TriangleRecord* tris_ = nullptr;
     Bvh2Node* bvh2_ = nullptr;
     uint32_t node_count_ = 0, tri_count_ = 0, bvh2_count_ = 0;
+    bool bvh2_leaf_ranges_ = false;
     int device_ = -1;
     UploadStats stats_;
 };

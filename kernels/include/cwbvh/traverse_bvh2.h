@@ -1,7 +1,10 @@
-// Binary BVH traversal over Bvh2Node (the BVH2 section): the baseline the paper
-// compares against (Aila & Laine 2009, "Understanding the Efficiency of Ray
-// Traversal on GPUs", while-while loop; nodes in the layout of Aila, Laine, Karras
-// 2012). Same triangle tests, hit semantics and status codes as traverse_cwbvh.
+// Binary BVH traversal over Bvh2Node (the BVH2 and BV2L sections): the baseline
+// the paper compares against (Aila & Laine 2009, "Understanding the Efficiency of
+// Ray Traversal on GPUs", while-while loop; Aila, Laine, Karras 2012 node layout,
+// leaf postponing and dynamic fetch). Same triangle tests and status codes as
+// traverse_cwbvh. This header: the per-ray box-test set-up and the box test;
+// bvh2_lane.h (included at the end): the lane steps shared by the GPU kernel and
+// traverse_bvh2(), the CPU reference.
 //
 // Box test: t = (b - o) * RN(1/d) on float planes, widened as in Ize 2013: the
 // computed t is within a relative 3u (u = 2^-24) of the exact one, so near is
@@ -74,86 +77,8 @@ CWBVH_HD CWBVH_INLINE bool intersect_box_robust(const Bvh2Ray& r, const float* l
     return tnear <= tfar;
 }
 
-template <TriangleTest kTest, HitMode kMode, int kStackSize = 64>
-CWBVH_HD CWBVH_INLINE TraceStatus traverse_bvh2(const Bvh2Node* nodes, uint32_t node_count,
-                                                const TriangleRecord* tris, uint32_t tri_count,
-                                                const Ray& ray, Hit& hit,
-                                                TraceCounters* counters = nullptr) {
-    hit = make_miss();
-    if (!ray_is_traceable(ray) || node_count == 0) return TraceStatus::kInvalidRay;
-    const Bvh2Ray bray = make_bvh2_ray(ray);
-    const TriangleIntersector<kTest> tri_test(ray);
-    const float tmin = ray.tmin;
-    float tmax = ray.tmax;
-    uint32_t n_nodes = 0, n_tris = 0;
-    TraceStatus status = TraceStatus::kOk;
-
-    constexpr int32_t kSentinel = 0x76543210;  // never a valid index (Aila & Laine's EntrypointSentinel)
-    int32_t stack[kStackSize];
-    int sp = 0;
-    int32_t node = 0;
-    bool done = false;
-    while (node != kSentinel && !done) {
-        // Inner loop 1: descend internal nodes.
-        while (node >= 0 && node != kSentinel) {
-            if (uint32_t(node) >= node_count) {
-                status = TraceStatus::kBadIndex;
-                done = true;
-                break;
-            }
-            const Bvh2Node& n = nodes[node];
-            ++n_nodes;
-            const float lo0[3] = {n.c0_lo_x, n.c0_lo_y, n.c0_lo_z}, hi0[3] = {n.c0_hi_x, n.c0_hi_y, n.c0_hi_z};
-            const float lo1[3] = {n.c1_lo_x, n.c1_lo_y, n.c1_lo_z}, hi1[3] = {n.c1_hi_x, n.c1_hi_y, n.c1_hi_z};
-            float t0 = 0.0f, t1 = 0.0f;
-            const bool h0 = intersect_box_robust(bray, lo0, hi0, tmin, tmax, t0);
-            const bool h1 = intersect_box_robust(bray, lo1, hi1, tmin, tmax, t1);
-            if (!h0 && !h1) {
-                node = sp > 0 ? stack[--sp] : kSentinel;
-            } else {
-                int32_t near_child = h0 ? n.child[0] : n.child[1];
-                int32_t far_child = n.child[1];
-                if (h0 && h1) {
-                    if (t1 < t0) {
-                        near_child = n.child[1];
-                        far_child = n.child[0];
-                    }
-                    if (sp >= kStackSize) {
-                        status = TraceStatus::kStackOverflow;
-                        done = true;
-                        break;
-                    }
-                    stack[sp++] = far_child;
-                }
-                node = near_child;
-            }
-        }
-        // Inner loop 2: leaves (one triangle each).
-        while (!done && node < 0) {
-            const uint32_t ti = uint32_t(~node);
-            if (ti >= tri_count) {
-                status = TraceStatus::kBadIndex;
-                done = true;
-                break;
-            }
-            ++n_tris;
-            TriangleHit th;
-            if (tri_test(tris[ti], tmin, tmax, th)) {
-                tmax = th.t;
-                hit = Hit{th.t, th.u, th.v, tris[ti].prim};
-                if (kMode == HitMode::kAny) {
-                    done = true;
-                    break;
-                }
-            }
-            node = sp > 0 ? stack[--sp] : kSentinel;
-        }
-    }
-    if (counters) {
-        counters->nodes = n_nodes;
-        counters->triangles = n_tris;
-    }
-    return status;
-}
-
 }  // namespace cwbvh
+
+// The traversal itself (lane state, node and triangle steps, and traverse_bvh2,
+// the CPU reference) is in bvh2_lane.h, which needs the box test above.
+#include "cwbvh/bvh2_lane.h"

@@ -38,7 +38,7 @@ typedef enum cwbvh_status {
 #define CWBVH_SECTION_SOURCE_MAP (1u << 2)
 #define CWBVH_SECTION_BOUNDS (1u << 3)
 #define CWBVH_SECTION_BUILD_INFO (1u << 4)
-#define CWBVH_SECTION_BVH2 (1u << 5)
+#define CWBVH_SECTION_BVH2 (1u << 5) /* BVH2 and BV2L */
 #define CWBVH_SECTION_VERTICES (1u << 6)
 #define CWBVH_SECTION_INDICES (1u << 7)
 #define CWBVH_SECTION_SOURCE_NAMES (1u << 8)
@@ -84,7 +84,9 @@ const void* cwbvh_triangles(const cwbvh_file* file, uint64_t* count);    /* 40-b
 const void* cwbvh_source_ranges(const cwbvh_file* file, uint64_t* count); /* 24-byte ranges */
 const float* cwbvh_bounds(const cwbvh_file* file);                       /* lo[3], hi[3] */
 const void* cwbvh_build_info(const cwbvh_file* file);                    /* 256 bytes */
-const void* cwbvh_bvh2(const cwbvh_file* file, uint64_t* count);         /* 64-byte nodes */
+/* Binary BVH, 64-byte nodes: the BV2L section (leaf ranges) if present, else the
+ * legacy BVH2 section (leaf_count fields 0 = one triangle per leaf). */
+const void* cwbvh_bvh2(const cwbvh_file* file, uint64_t* count);
 const float* cwbvh_vertices(const cwbvh_file* file, uint64_t* count);    /* count vertices x 3 */
 const uint32_t* cwbvh_indices(const cwbvh_file* file, uint64_t* count);  /* count triangles x 3 */
 const char* cwbvh_source_names(const cwbvh_file* file, uint64_t* size);  /* NUL-separated, size bytes */

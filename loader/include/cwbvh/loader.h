@@ -75,7 +75,19 @@ public:
     uint64_t stored_triangle_count() const;
     const SceneBounds* bounds() const { return one<SceneBounds>(kSectionBounds); }
     const BuildInfo* build_info() const { return one<BuildInfo>(kSectionBuildInfo); }
-    std::span<const Bvh2Node> bvh2() const { return view<Bvh2Node>(kSectionBvh2); }
+    /// The binary BVH of the baseline kernels: BV2L (leaf ranges, format 1.1) when
+    /// the file has it, else the legacy BVH2 (one triangle per leaf; its leaf_count
+    /// fields are 0, which the traversals read as 1). Empty if neither is present
+    /// or kMaskBvh2 was not selected.
+    std::span<const Bvh2Node> bvh2() const {
+        const std::span<const Bvh2Node> ranges = view<Bvh2Node>(kSectionBvh2Leaves);
+        return ranges.empty() ? view<Bvh2Node>(kSectionBvh2) : ranges;
+    }
+    /// The section bvh2() hands out: kSectionBvh2Leaves, kSectionBvh2, or 0 for none.
+    uint32_t bvh2_type() const {
+        if (!view<Bvh2Node>(kSectionBvh2Leaves).empty()) return kSectionBvh2Leaves;
+        return view<Bvh2Node>(kSectionBvh2).empty() ? 0u : uint32_t(kSectionBvh2);
+    }
     /// VERT as float[3] per vertex; INDX as uint32_t[3] per stored triangle.
     std::span<const float> vertices() const { return view<float>(kSectionVertices); }
     std::span<const uint32_t> indices() const { return view<uint32_t>(kSectionIndices); }

@@ -21,7 +21,7 @@ struct CompileOptions {
     float split_alpha = 1e-5f;            ///< SBVH overlap threshold (Stich et al. 2009)
     float max_reference_growth = 0.15f;    ///< SBVH reference budget: references <= (1 + x) * triangles (see SbvhConfig)
     float collapse_cost_prim = 0.3f;      ///< C_prim of the collapse DP (C_node = 1), stored in BILD
-    bool keep_sbvh = false;               ///< write the optional BVH2 section
+    bool keep_sbvh = false;               ///< write the optional BV2L section (binary BVH with leaf ranges)
     bool keep_mesh = false;               ///< write the optional VERT/INDX sections
     bool verify = true;                   ///< decode every node and check containment before writing
 };

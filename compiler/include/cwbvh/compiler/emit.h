@@ -34,13 +34,13 @@ struct EmitResult {
     std::vector<SourceRange> source_ranges;  ///< PMAP payload: Scene::sources as runs
     uint64_t wide_nodes = 0;
     uint32_t wide_depth = 0;   ///< levels of NODE (root = 1)
-    uint32_t bvh2_depth = 0;   ///< levels of BVH2 incl. leaves (only with keep_sbvh)
+    uint32_t bvh2_depth = 0;   ///< levels of BV2L incl. leaves (only with keep_sbvh)
     double avg_children = 0;
     uint32_t max_leaf_triangles = 0;
     double sah_wide = 0;
 };
 
-/// Quantizes and lays out the tree (NODE, TRIS, optional BVH2), verifies it
+/// Quantizes and lays out the tree (NODE, TRIS, optional BV2L), verifies it
 /// when options->verify, and fills the BILD/BNDS/SRCN/PMAP payloads.
 [[nodiscard]] bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error);
 

@@ -1,4 +1,4 @@
-// WideBvh -> the NODE / TRIS / BVH2 sections of a .cwbvh file.
+// WideBvh -> the NODE / TRIS / BV2L sections of a .cwbvh file.
 #pragma once
 
 #include <cstdint>
@@ -13,7 +13,7 @@ namespace cwbvh::compiler {
 struct EncodedTree {
     std::vector<CwbvhNode> nodes;           ///< NODE, node 0 = root
     std::vector<TriangleRecord> triangles;  ///< TRIS, leaf order
-    std::vector<Bvh2Node> bvh2;             ///< BVH2 (filled by encode_bvh2, optional)
+    std::vector<Bvh2Node> bvh2;             ///< BV2L (filled by encode_bvh2, optional)
     /// WideBvh::leaf_refs index -> TRIS index.
     std::vector<uint32_t> ref_to_tri;
     /// NODE index -> WideBvh::nodes index.
@@ -35,11 +35,17 @@ struct EncodedTree {
 [[nodiscard]] bool encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, std::string& error,
                                 float c_node = 1.0f, float c_prim = 0.3f);
 
-/// BVH2 section: Aila–Laine 64-byte nodes over the binary BVH's internal nodes
-/// (same order as BinaryBvh::nodes, i.e. depth first), leaves point to
-/// TRIS[~child] = the TRIS record of that binary leaf's reference in the wide
-/// leaf order (tree.ref_to_tri[wide.binary_leaf_ref[leaf]]). A binary BVH whose
-/// root is a leaf (single reference) gives one node with that leaf in both children.
+/// BV2L section (binary BVH with leaf ranges, spec 3.6): Aila–Laine 64-byte nodes
+/// over the binary BVH cut at the wide tree's leaves. Every wide leaf is one
+/// binary subtree (the collapse made it from all binary leaves under one node m);
+/// the BVH2 keeps the binary internal nodes above those subtrees (same order as
+/// BinaryBvh::nodes, i.e. depth first), and the child that was m is a leaf child
+/// with m's box, ~child = the wide leaf's first TRIS record and leaf_count = its
+/// 1..3 records, so leaves share TRIS with the wide tree and no triangle is
+/// duplicated. A tree that is a single wide leaf (one reference) gives one node
+/// with that leaf in both children. Errors: a wide tree not collapsed from this
+/// binary tree, a wide leaf whose records are not consecutive in TRIS, more than
+/// 2^29 records (kMaxBvh2LeafTris).
 [[nodiscard]] bool encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree& tree,
                                std::vector<Bvh2Node>& out, std::string& error);
 
