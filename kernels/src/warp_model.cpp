@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "cwbvh/cwbvh_lane.h"
-#include "cwbvh/traverse_bvh2.h"
+#include "cwbvh/bvh2_lane.h"
 
 namespace cwbvh {
 namespace {
@@ -250,178 +250,145 @@ WarpModelStats model_cwbvh(const CwbvhNode* nodes, size_t node_count, const Tria
 }
 
 // ---------------------------------------------------------------------------
-// BVH2, the 2009 persistent while-while kernel
+// BVH2: the Aila-Karras-Laine 2012 kernel (trace_bvh2_persistent) and the 2009
+// persistent while-while kernel, both over the lane steps of bvh2_lane.h.
 // ---------------------------------------------------------------------------
 
 template <TriangleTest kTest, HitMode kMode>
 class Bvh2Warp {
 public:
-    static constexpr int32_t kSentinel = 0x76543210;
-    static constexpr int kStack = 64;
+    static constexpr uint32_t kNoRay = 0xFFFFFFFFu;
 
-    Bvh2Warp(const Bvh2Node* nodes, size_t node_count, const TriangleRecord* tris, size_t tri_count, const Ray* rays,
-             Hit* hits, const WarpModelOptions& o, WarpModelStats& s)
-        : nodes_(nodes), node_count_(uint32_t(node_count)), tris_(tris), tri_count_(uint32_t(tri_count)),
-          rays_(rays), hits_(hits), o_(o), s_(s) {}
+    Bvh2Warp(const Bvh2Scene& scene, const Ray* rays, Hit* hits, const WarpModelOptions& o, WarpModelStats& s)
+        : s_(scene), rays_(rays), hits_(hits), o_(o), st_(s), akl_(o.bvh2_kernel == Bvh2Kernel::kAkl2012) {
+        for (uint32_t& i : id_) i = kNoRay;
+    }
 
     bool turn(RayCounter& c) {
-        bool any = false;
-        for (const Lane& l : lanes_) any |= l.active;
-        if (!any) {
-            if (c.next >= c.count) return false;
+        if (need_fetch_) {
+            store();
             fetch(c);
-            return true;
+            if (busy() == 0) return !exhausted_;
+            need_fetch_ = false;
         }
-        trip();
+        iterate();
+        const int b = busy();
+        if (b == 0 || (akl_ && !exhausted_ && b < o_.bvh2_fetch_threshold)) need_fetch_ = true;
         return true;
     }
 
     double lane_work = 0, issued = 0;
 
 private:
-    struct Lane {
-        bool active = false;
-        uint32_t ray_id = 0;
-        Bvh2Ray bray{};
-        TriangleIntersector<kTest> tri_test{Ray{{0, 0, 0}, 0, {1, 1, 1}, 0}};
-        float tmin = 0, tmax = 0;
-        Hit hit{};
-        int32_t node = kSentinel;
-        int32_t stack[kStack];
-        int sp = 0;
-    };
+    int busy() const {
+        int n = 0;
+        for (const auto& l : l_) n += !bvh2_lane_done(l);
+        return n;
+    }
 
+    /// Step 1 of bvh2_lane.h's warp control: done lanes that hold a ray store it.
+    void store() {
+        for (int i = 0; i < kLanes; ++i) {
+            if (id_[i] == kNoRay || !bvh2_lane_done(l_[i])) continue;
+            const Hit h = bvh2_lane_hit(l_[i], m_[i]);
+            hits_[id_[i]] = h;
+            st_.hits += h.prim != kMissPrim;
+            st_.stack_overflows += l_[i].status == TraceStatus::kStackOverflow;
+            st_.bad_indices += l_[i].status == TraceStatus::kBadIndex;
+            st_.invalid_rays += l_[i].status == TraceStatus::kInvalidRay;
+            id_[i] = kNoRay;
+        }
+    }
+
+    /// Step 2: one atomicAdd for the done lanes; a base past the end exhausts the pool.
     void fetch(RayCounter& c) {
-        ++s_.refills;
+        if (exhausted_) return;
+        int need = 0;
+        for (const auto& l : l_) need += bvh2_lane_done(l);
+        if (need == 0 || (!akl_ && need != kLanes)) return;
+        ++st_.refills;
         issued += o_.refill_instructions;
         const size_t base = c.next;
-        c.next += kLanes;
+        c.next += size_t(need);
+        if (base >= c.count) {
+            exhausted_ = true;
+            return;
+        }
+        size_t rank = 0;
         for (int i = 0; i < kLanes; ++i) {
-            Lane& l = lanes_[i];
-            if (base + size_t(i) >= c.count) continue;
-            const uint32_t id = uint32_t(base + size_t(i));
-            const Ray& r = rays_[id];
-            ++s_.rays;
-            l.ray_id = id;
-            if (!ray_is_traceable(r) || node_count_ == 0) {
-                hits_[id] = make_miss();
-                ++s_.invalid_rays;
-                continue;
-            }
-            l.bray = make_bvh2_ray(r);
-            l.tri_test = TriangleIntersector<kTest>(r);
-            l.tmin = r.tmin;
-            l.tmax = r.tmax;
-            l.hit = make_miss();
-            l.node = 0;
-            l.sp = 0;
-            l.active = true;
+            if (!bvh2_lane_done(l_[i])) continue;
+            const size_t r = base + rank++;
+            if (r >= c.count) continue;
+            id_[i] = uint32_t(r);
+            ++st_.rays;
+            bvh2_lane_start(l_[i], m_[i], rays_[r], s_);
             lane_work += o_.refill_instructions;
         }
     }
 
-    void finish(Lane& l, TraceStatus status) {
-        hits_[l.ray_id] = status == TraceStatus::kOk ? l.hit : make_miss();
-        s_.hits += status == TraceStatus::kOk && l.hit.prim != kMissPrim;
-        s_.stack_overflows += status == TraceStatus::kStackOverflow;
-        s_.bad_indices += status == TraceStatus::kBadIndex;
-        l.active = false;
-    }
-
-    int32_t pop(Lane& l) { return l.sp > 0 ? l.stack[--l.sp] : kSentinel; }
-
-    static bool in_node_loop(const Lane& l) { return l.active && l.node >= 0 && l.node != kSentinel; }
-    static bool in_leaf_loop(const Lane& l) { return l.active && l.node < 0; }
-
-    void node_step(Lane& l) {
-        if (uint32_t(l.node) >= node_count_) return finish(l, TraceStatus::kBadIndex);
-        const Bvh2Node& n = nodes_[l.node];
-        const float lo0[3] = {n.c0_lo_x, n.c0_lo_y, n.c0_lo_z}, hi0[3] = {n.c0_hi_x, n.c0_hi_y, n.c0_hi_z};
-        const float lo1[3] = {n.c1_lo_x, n.c1_lo_y, n.c1_lo_z}, hi1[3] = {n.c1_hi_x, n.c1_hi_y, n.c1_hi_z};
-        float t0 = 0, t1 = 0;
-        const bool h0 = intersect_box_robust(l.bray, lo0, hi0, l.tmin, l.tmax, t0);
-        const bool h1 = intersect_box_robust(l.bray, lo1, hi1, l.tmin, l.tmax, t1);
-        if (!h0 && !h1) {
-            l.node = pop(l);
-            return;
-        }
-        int near_c = h0 ? 0 : 1;
-        if (h0 && h1) {
-            if (t1 < t0) near_c = 1;
-            if (l.sp >= kStack) return finish(l, TraceStatus::kStackOverflow);
-            if (l.sp >= o_.shared_stack_entries) ++s_.spilled_pushes;
-            l.stack[l.sp++] = n.child[1 - near_c];
-            s_.max_stack = std::max<uint64_t>(s_.max_stack, uint64_t(l.sp));
-        }
-        l.node = n.child[near_c];
-    }
-
-    /// The 2009 kernel's leaves hold one triangle each (legacy BVH2 section).
-    void leaf_step(Lane& l) {
-        const uint32_t ti = uint32_t(~l.node);
-        if (ti >= tri_count_) return finish(l, TraceStatus::kBadIndex);
-        TriangleHit th;
-        if (l.tri_test(tris_[ti], l.tmin, l.tmax, th)) {
-            l.tmax = th.t;
-            l.hit = Hit{th.t, th.u, th.v, tris_[ti].prim};
-            if (kMode == HitMode::kAny) return finish(l, TraceStatus::kOk);
-        }
-        l.node = pop(l);
-    }
-
-    void trip() {
-        ++s_.warp_iterations;
-        int act = 0;
-        for (const Lane& l : lanes_) act += l.active;
-        s_.active_lane_iterations += uint64_t(act);
+    /// Step 3: node phase (AKL: lanes holding a leaf traverse speculatively), leaf phase.
+    void iterate() {
+        ++st_.warp_iterations;
+        const int b = busy();
+        st_.active_lane_iterations += uint64_t(b);
         lane_work += o_.control_instructions * kLanes;
         issued += o_.control_instructions;
-        // Node loop: runs while any lane is in it.
         for (;;) {
+            int wanting = 0;
+            for (const auto& l : l_) wanting += bvh2_lane_in_nodes(l) && !bvh2_lane_has_leaf(l);
+            if (wanting == 0) break;
             int n = 0;
-            for (Lane& l : lanes_)
-                if (in_node_loop(l)) ++n, node_step(l);
-            if (n == 0) break;
-            ++s_.warp_node_steps;
-            s_.lane_node_steps += uint64_t(n);
-            ++s_.node_lane_hist[n];
+            for (int i = 0; i < kLanes; ++i) {
+                const bool step = akl_ ? bvh2_lane_in_nodes(l_[i])
+                                       : bvh2_lane_in_nodes(l_[i]) && !bvh2_lane_has_leaf(l_[i]);
+                if (!step) continue;
+                ++n;
+                bvh2_lane_node_step(l_[i], m_[i], s_);
+                st_.max_stack = std::max<uint64_t>(st_.max_stack, uint64_t(l_[i].sp));
+            }
+            ++st_.warp_node_steps;
+            st_.lane_node_steps += uint64_t(n);
+            ++st_.node_lane_hist[n];
             lane_work += o_.bvh2_node_instructions * n;
             issued += o_.bvh2_node_instructions;
         }
-        // Leaf loop: runs while any lane is in it.
         for (;;) {
             int n = 0;
-            for (Lane& l : lanes_)
-                if (in_leaf_loop(l)) ++n, leaf_step(l);
+            for (int i = 0; i < kLanes; ++i) {
+                if (!bvh2_lane_has_leaf(l_[i])) continue;
+                ++n;
+                bvh2_lane_triangle_step<kMode>(l_[i], m_[i], s_);
+            }
             if (n == 0) break;
-            ++s_.warp_tri_steps;
-            s_.lane_tri_tests += uint64_t(n);
-            ++s_.tri_lane_hist[n];
+            ++st_.warp_tri_steps;
+            st_.lane_tri_tests += uint64_t(n);
+            ++st_.tri_lane_hist[n];
             lane_work += o_.tri_instructions * n;
             issued += o_.tri_instructions;
         }
-        for (Lane& l : lanes_)
-            if (l.active && l.node == kSentinel) finish(l, TraceStatus::kOk);
     }
 
-    const Bvh2Node* nodes_;
-    uint32_t node_count_;
-    const TriangleRecord* tris_;
-    uint32_t tri_count_;
+    Bvh2Scene s_;
     const Ray* rays_;
     Hit* hits_;
     const WarpModelOptions& o_;
-    WarpModelStats& s_;
-    Lane lanes_[kLanes];
+    WarpModelStats& st_;
+    bool akl_;
+    Bvh2Lane<kTest> l_[kLanes];
+    Bvh2LaneMemory m_[kLanes];
+    uint32_t id_[kLanes];
+    bool need_fetch_ = true;
+    bool exhausted_ = false;
 };
 
 template <TriangleTest kTest, HitMode kMode>
 WarpModelStats model_bvh2(const Bvh2Node* nodes, size_t node_count, const TriangleRecord* tris, size_t tri_count,
                           const Ray* rays, Hit* hits, size_t ray_count, const WarpModelOptions& o) {
     using W = Bvh2Warp<kTest, kMode>;
-    return run_warps<W>(ray_count, o, [&](WarpModelStats& s) {
-        return W(nodes, node_count, tris, tri_count, rays, hits, o, s);
-    });
+    const Bvh2Scene scene = make_bvh2_scene(nodes, uint32_t(node_count), tris, uint32_t(tri_count));
+    WarpModelStats s = run_warps<W>(ray_count, o, [&](WarpModelStats& st) { return W(scene, rays, hits, o, st); });
+    // The final store of each warp happens when it exits: rays still held are done.
+    return s;
 }
 
 }  // namespace
@@ -442,7 +409,7 @@ WarpModelStats model_cwbvh_warps(const CwbvhNode* nodes, size_t node_count, cons
                                                                             hits, ray_count, o);
 }
 
-WarpModelStats model_bvh2_2009_warps(const Bvh2Node* nodes, size_t node_count, const TriangleRecord* tris,
+WarpModelStats model_bvh2_warps(const Bvh2Node* nodes, size_t node_count, const TriangleRecord* tris,
                                      size_t tri_count, const Ray* rays, Hit* hits, size_t ray_count,
                                      const WarpModelOptions& o) {
     const bool any = o.mode == HitMode::kAny;

@@ -20,7 +20,7 @@ constexpr Verb kVerbs[] = {
     {"validate", run_validate, "validate FILE... [--no-checksums]   check a file against the spec"},
     {"rays", run_rays, "rays FILE --primary|--diffuse [--bounce N] [--width W --height H] [--seed S] [--view NAME|N] [--camera e,e,e,t,t,t,fov] -o RAYS"},
     {"trace", run_trace, "trace FILE --rays RAYS [--hits HITS] [--any] [--fast] [--bvh2] [--cpu|--gpu] [--threads N]"},
-    {"model", run_model, "model FILE --rays RAYS [--bvh2] [--any] [--fast] [--no-postpone] [--nd N --nw N] [--check]"},
+    {"model", run_model, "model FILE --rays RAYS [--bvh2|--bvh2-2009] [--any] [--fast] [--no-postpone] [--nd N --nw N] [--check]"},
     {"render", run_render, "render FILE -o IMAGE.png [--heatmap] [--width W --height H] [--camera e,e,e,t,t,t,fov] [--ao N]"},
 };
 

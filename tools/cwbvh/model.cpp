@@ -1,4 +1,4 @@
-// cwbvh model FILE --rays RAYS [--bvh2] [--any] [--fast] [--warps N] [--no-postpone]
+// cwbvh model FILE --rays RAYS [--bvh2|--bvh2-2009] [--any] [--fast] [--warps N] [--no-postpone]
 //                  [--postpone-percent P] [--postpone-with-node-work] [--no-dynamic-fetch] [--nd N] [--nw N]
 //                  [--shared-entries N] [--node-instructions N] [--tri-instructions N] [--check]
 // Runs the CPU lock-step warp model of the GPU kernels (warp_model.h) over a ray
@@ -33,7 +33,7 @@ void print_hist(const char* name, const uint64_t (&h)[33]) {
 
 int run_model(int argc, char** argv) {
     const char* usage =
-        "usage: cwbvh model FILE --rays RAYS [--bvh2] [--any] [--fast] [--warps N] [--no-postpone] "
+        "usage: cwbvh model FILE --rays RAYS [--bvh2|--bvh2-2009] [--any] [--fast] [--warps N] [--no-postpone] "
         "[--postpone-percent P] [--postpone-with-node-work] [--no-dynamic-fetch] [--nd N] [--nw N] [--shared-entries N] [--node-instructions N] [--tri-instructions N] [--check]";
     const char* path = nullptr;
     const char* rays_path = nullptr;
@@ -47,6 +47,9 @@ int run_model(int argc, char** argv) {
             if (!(rays_path = option_value(argc, argv, i))) return error(kExitUsage, "model: --rays needs a path");
         } else if (a == "--bvh2") {
             bvh2 = true;
+        } else if (a == "--bvh2-2009") {
+            bvh2 = true;
+            o.bvh2_kernel = Bvh2Kernel::kWhileWhile2009;
         } else if (a == "--any") {
             o.mode = HitMode::kAny;
         } else if (a == "--fast") {
@@ -104,8 +107,7 @@ int run_model(int argc, char** argv) {
     WarpModelStats s;
     if (bvh2) {
         const auto n = file->bvh2();
-        s = model_bvh2_2009_warps(n.data(), n.size(), tris.data(), tris.size(), rays.data(), hits.data(), rays.size(),
-                                  o);
+        s = model_bvh2_warps(n.data(), n.size(), tris.data(), tris.size(), rays.data(), hits.data(), rays.size(), o);
     } else {
         const auto n = file->nodes();
         s = model_cwbvh_warps(n.data(), n.size(), tris.data(), tris.size(), rays.data(), hits.data(), rays.size(), o);
@@ -113,10 +115,14 @@ int run_model(int argc, char** argv) {
 
     const double n = double(s.rays ? s.rays : 1);
     std::printf("model            %s (%s, %s), %u warps, postpone %s (%d%%), fetch %s (Nd %d, Nw %d)\n",
-                bvh2 ? "bvh2 2009 while-while" : "cwbvh", o.mode == HitMode::kAny ? "any-hit" : "closest-hit",
+                bvh2 ? (o.bvh2_kernel == Bvh2Kernel::kAkl2012 ? "bvh2 (Aila-Karras-Laine 2012)"
+                                                               : "bvh2 (Aila-Laine 2009 while-while)")
+                     : "cwbvh", o.mode == HitMode::kAny ? "any-hit" : "closest-hit",
                 o.test == TriangleTest::kFast ? "fast test" : "watertight test", o.warps,
                 o.postpone && !bvh2 ? "on" : "off", o.postpone_percent,
-                bvh2 ? "whole warp" : (o.dynamic_fetch ? "dynamic" : "whole warp"), o.fetch_nd, o.fetch_nw);
+                bvh2 ? (o.bvh2_kernel == Bvh2Kernel::kAkl2012 ? "below 20 busy lanes" : "whole warp")
+                     : (o.dynamic_fetch ? "dynamic" : "whole warp"),
+                o.fetch_nd, o.fetch_nw);
     std::printf("rays             %llu (hits %llu, invalid %llu)\n", (unsigned long long)s.rays,
                 (unsigned long long)s.hits, (unsigned long long)s.invalid_rays);
     std::printf("nodes/ray        %.2f\n", double(s.lane_node_steps) / n);
@@ -147,9 +153,14 @@ int run_model(int argc, char** argv) {
         CpuTraceOptions co;
         co.mode = o.mode;
         co.test = o.test;
-        const auto nodes = file->nodes();
-        trace_cwbvh_cpu(nodes.data(), nodes.size(), tris.data(), tris.size(), rays.data(), ref.data(), rays.size(),
-                        co);
+        if (bvh2) {
+            const auto b = file->bvh2();
+            trace_bvh2_cpu(b.data(), b.size(), tris.data(), tris.size(), rays.data(), ref.data(), rays.size(), co);
+        } else {
+            const auto nodes = file->nodes();
+            trace_cwbvh_cpu(nodes.data(), nodes.size(), tris.data(), tris.size(), rays.data(), ref.data(),
+                            rays.size(), co);
+        }
         uint64_t bad = 0, ties = 0;
         for (size_t i = 0; i < rays.size(); ++i) {
             const bool hm = hits[i].prim != kMissPrim, hr = ref[i].prim != kMissPrim;

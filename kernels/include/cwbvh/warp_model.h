@@ -23,10 +23,14 @@
 // counter, so a refill takes rays from wherever the counter is (as on the GPU with
 // many resident warps).
 //
-// BVH2 2009 kernel (trace_bvh2_persistent before issue 10, kept as a model to check
-// the model against the measured figures): persistent warps fetch 32 rays when every
-// lane is done; each lane runs the while-while loop (traverse_bvh2.h); the warp runs
-// the node loop while any lane is in it and the leaf loop while any lane is in it.
+// BVH2 kernels, over the lane steps of bvh2_lane.h (which documents the warp rules):
+//   kAkl2012:  today's baseline (trace_bvh2_persistent, Aila, Karras, Laine 2012):
+//              node phase while any lane without a postponed leaf can traverse, with
+//              the lanes that hold a leaf traversing speculatively; leaf phase; refill
+//              the done lanes when fewer than bvh2_fetch_threshold lanes are busy.
+//   kWhileWhile2009: the kernel measured in issue 10 (Aila, Laine 2009 persistent
+//              while-while: no speculation, a warp fetches 32 rays when all are done),
+//              kept to check the model against that measurement.
 //
 // "Active lanes per issued instruction" (Nsight Compute's threads per instruction)
 // is estimated by weighting each phase with an instruction count per step (the
@@ -45,6 +49,8 @@
 
 namespace cwbvh {
 
+enum class Bvh2Kernel : uint32_t { kAkl2012 = 0, kWhileWhile2009 = 1 };
+
 struct WarpModelOptions {
     HitMode mode = HitMode::kClosest;
     TriangleTest test = TriangleTest::kWatertight;
@@ -58,6 +64,8 @@ struct WarpModelOptions {
     int fetch_nd = kDynamicFetchNd;
     int fetch_nw = kDynamicFetchNw;
     int shared_stack_entries = kGpuSharedStackEntries;  ///< entries below this depth are "shared"
+    Bvh2Kernel bvh2_kernel = Bvh2Kernel::kAkl2012;
+    int bvh2_fetch_threshold = 20;  ///< kBvh2DynamicFetchThreshold (bvh2_lane.h)
     // Instruction weights of the phases (warp instructions issued per step) for the
     // estimates of issued instructions and of active lanes per issued instruction.
     // node: the SASS size of one CWBVH node step (bench/gpu/step_sizes.sh, sm_90,
@@ -117,9 +125,9 @@ WarpModelStats model_cwbvh_warps(const CwbvhNode* nodes, size_t node_count, cons
                                  size_t tri_count, const Ray* rays, Hit* hits, size_t ray_count,
                                  const WarpModelOptions& options = {});
 
-/// The 2009 persistent while-while BVH2 kernel (one triangle per leaf or leaf
-/// ranges, whatever traverse_bvh2.h accepts), for comparison with the CWBVH model.
-WarpModelStats model_bvh2_2009_warps(const Bvh2Node* nodes, size_t node_count, const TriangleRecord* tris,
+/// A BVH2 kernel (options.bvh2_kernel) over a BVH2 or BV2L section; hits equal
+/// the CPU BVH2 traversal's bit for bit.
+WarpModelStats model_bvh2_warps(const Bvh2Node* nodes, size_t node_count, const TriangleRecord* tris,
                                      size_t tri_count, const Ray* rays, Hit* hits, size_t ray_count,
                                      const WarpModelOptions& options = {});
 
