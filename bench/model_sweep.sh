@@ -19,20 +19,20 @@ cwbvhc=${CWBVHC:-$root/build/bin/cwbvhc}
 scenes=${CWBVH_SHARED_SCENES:-$root/../shared/scenes}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-# scene file | view name | camera ("" = default camera)
+# scene file | view of the catalog (views/catalog.txt; the GPU benchmark's views)
 views=(
-  "sponza_dabrovic.obj|inside|-12,3,0,10,5,0,70"
-  "oa_oacmpctf3.glb|inside|0,-1000,500,0,1000,500,80"
-  "bunny.obj|default|"
-  "fg_cg57.glb|default|"
-  "dragon_res2.glb|default|"
+  "sponza_dabrovic.obj|1"
+  "oa_oacmpctf3.glb|1"
+  "bunny.obj|1"
+  "fg_cg57.glb|1"
+  "dragon_res2.glb|1"
 )
 {
   echo "| scene | view | rays | variant | rays | nodes/ray | tris/ray | lanes/node step | lanes/tri step | tri share of steps | est. lanes/instr | est. instr/ray |"
   echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
 } > "$out"
 for v in "${views[@]}"; do
-  IFS='|' read -r file view cam <<< "$v"
+  IFS='|' read -r file view <<< "$v"
   name=${file%.*}
   [[ -f "$scenes/$file" ]] || { echo "skip $file" >&2; continue; }
   "$cwbvhc" "$scenes/$file" -o "$tmp/$name.cwbvh" --keep-sbvh --quiet
@@ -41,8 +41,7 @@ for v in "${views[@]}"; do
     legacy="$tmp/$name-legacy.cwbvh"
     "$LEGACY_CWBVHC" "$scenes/$file" -o "$legacy" --keep-sbvh --quiet
   fi
-  camarg=()
-  [[ -n "$cam" ]] && camarg=(--camera "$cam")
+  camarg=(--view "$view" --scene "$name")
   for kind in primary d1 d4; do
     case $kind in
       primary) "$cwbvh" rays "$tmp/$name.cwbvh" --primary "${camarg[@]}" --width "$w" --height "$w" -o "$tmp/r" >/dev/null ;;
