@@ -391,38 +391,33 @@ WarpModelStats model_bvh2(const Bvh2Node* nodes, size_t node_count, const Triang
     return s;
 }
 
+/// Calls f.template operator()<kTest, kMode>() for the options' test and query.
+template <class F>
+WarpModelStats dispatch(const WarpModelOptions& o, F f) {
+    const bool any = o.mode == HitMode::kAny;
+    if (o.test == TriangleTest::kFast)
+        return any ? f.template operator()<TriangleTest::kFast, HitMode::kAny>()
+                   : f.template operator()<TriangleTest::kFast, HitMode::kClosest>();
+    return any ? f.template operator()<TriangleTest::kWatertight, HitMode::kAny>()
+               : f.template operator()<TriangleTest::kWatertight, HitMode::kClosest>();
+}
+
 }  // namespace
 
 WarpModelStats model_cwbvh_warps(const CwbvhNode* nodes, size_t node_count, const TriangleRecord* tris,
                                  size_t tri_count, const Ray* rays, Hit* hits, size_t ray_count,
                                  const WarpModelOptions& o) {
-    const bool any = o.mode == HitMode::kAny;
-    if (o.test == TriangleTest::kFast) {
-        return any ? model_cwbvh<TriangleTest::kFast, HitMode::kAny>(nodes, node_count, tris, tri_count, rays, hits,
-                                                                      ray_count, o)
-                   : model_cwbvh<TriangleTest::kFast, HitMode::kClosest>(nodes, node_count, tris, tri_count, rays,
-                                                                          hits, ray_count, o);
-    }
-    return any ? model_cwbvh<TriangleTest::kWatertight, HitMode::kAny>(nodes, node_count, tris, tri_count, rays, hits,
-                                                                        ray_count, o)
-               : model_cwbvh<TriangleTest::kWatertight, HitMode::kClosest>(nodes, node_count, tris, tri_count, rays,
-                                                                            hits, ray_count, o);
+    return dispatch(o, [&]<TriangleTest kTest, HitMode kMode>() {
+        return model_cwbvh<kTest, kMode>(nodes, node_count, tris, tri_count, rays, hits, ray_count, o);
+    });
 }
 
 WarpModelStats model_bvh2_warps(const Bvh2Node* nodes, size_t node_count, const TriangleRecord* tris,
-                                     size_t tri_count, const Ray* rays, Hit* hits, size_t ray_count,
-                                     const WarpModelOptions& o) {
-    const bool any = o.mode == HitMode::kAny;
-    if (o.test == TriangleTest::kFast) {
-        return any ? model_bvh2<TriangleTest::kFast, HitMode::kAny>(nodes, node_count, tris, tri_count, rays, hits,
-                                                                     ray_count, o)
-                   : model_bvh2<TriangleTest::kFast, HitMode::kClosest>(nodes, node_count, tris, tri_count, rays,
-                                                                         hits, ray_count, o);
-    }
-    return any ? model_bvh2<TriangleTest::kWatertight, HitMode::kAny>(nodes, node_count, tris, tri_count, rays, hits,
-                                                                       ray_count, o)
-               : model_bvh2<TriangleTest::kWatertight, HitMode::kClosest>(nodes, node_count, tris, tri_count, rays,
-                                                                           hits, ray_count, o);
+                                size_t tri_count, const Ray* rays, Hit* hits, size_t ray_count,
+                                const WarpModelOptions& o) {
+    return dispatch(o, [&]<TriangleTest kTest, HitMode kMode>() {
+        return model_bvh2<kTest, kMode>(nodes, node_count, tris, tri_count, rays, hits, ray_count, o);
+    });
 }
 
 }  // namespace cwbvh

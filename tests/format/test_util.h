@@ -3,7 +3,11 @@
 // the rule it targets instead of stopping at the checksum.
 #pragma once
 
+#include <sys/wait.h>
+
+#include <algorithm>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -94,5 +98,27 @@ inline Result check(const std::vector<uint8_t>& f, bool checksums = true) {
 /// Writes bytes to a file under the test temp dir; returns the path.
 std::string write_temp(const std::string& name, const std::vector<uint8_t>& bytes);
 std::string temp_dir();
+
+/// Exit code and output (stdout + stderr) of one `cwbvh` command of this build.
+struct ToolRun {
+    int code;
+    std::string out;
+};
+
+/// Runs `cwbvh ARGS` from the build's bin folder, with CWBVH_VIEWS unset so the
+/// compiled-in view catalog applies.
+inline ToolRun run_cwbvh(const std::string& args) {
+    const std::string cmd = "env -u CWBVH_VIEWS " + std::string(CWBVH_BIN_DIR) + "/cwbvh " + args + " 2>&1";
+    FILE* p = popen(cmd.c_str(), "r");
+    if (p == nullptr) return {-1, ""};
+    std::string out;
+    char buf[4096];
+    size_t n;
+    while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+    const int status = pclose(p);
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+inline size_t count_lines(const std::string& s) { return size_t(std::count(s.begin(), s.end(), '\n')); }
 
 }  // namespace cwbvh::test

@@ -254,24 +254,9 @@ TEST(ShippedViewCatalog, EnclosedScenesAreSeenFromInside) {
 
 // ---- cwbvh rays --view -----------------------------------------------------------------
 
-struct ToolRun {
-    int code;
-    std::string out;  // stdout + stderr
-};
-
-ToolRun run_tool(const std::string& args) {
-    const std::string cmd = "env -u CWBVH_VIEWS " + std::string(CWBVH_BIN_DIR) + "/cwbvh " + args + " 2>&1";
-    FILE* p = popen(cmd.c_str(), "r");
-    if (p == nullptr) return {-1, ""};
-    std::string out;
-    char buf[4096];
-    size_t n;
-    while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-    const int status = pclose(p);
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
-
-size_t lines(const std::string& s) { return size_t(std::count(s.begin(), s.end(), '\n')); }
+using test::ToolRun;
+ToolRun run_tool(const std::string& args) { return test::run_cwbvh(args); }
+size_t lines(const std::string& s) { return test::count_lines(s); }
 
 TEST(RaysView, PicksCatalogViewsByNameIndexAndDefault) {
     const std::string file = test::write_temp("rays_views_scene.cwbvh", test::synthetic_file());

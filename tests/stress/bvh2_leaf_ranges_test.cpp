@@ -34,21 +34,7 @@ using test::Mesh;
 
 std::vector<Ray> scene_rays(const File& f, size_t n_random, uint32_t cam_size, uint32_t seed) {
     const SceneBounds& b = *f.bounds();
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    std::vector<Ray> rays;
-    for (size_t i = 0; i < n_random; ++i) {
-        Ray r;
-        for (int a = 0; a < 3; ++a) {
-            const double lo = b.lo[a], ext = double(b.hi[a]) - lo;
-            const double o = lo + (u(rng) * 2.0 - 0.5) * ext, t = lo + u(rng) * ext;
-            r.org[a] = float(o);
-            r.dir[a] = float(t - o);
-        }
-        r.tmin = 0.0f;
-        r.tmax = (i % 4 == 3) ? 0.75f : kInfinity;
-        if (ray_is_traceable(r)) rays.push_back(r);
-    }
+    std::vector<Ray> rays = random_rays(b, n_random, seed);
     const std::vector<Ray> primary = camera_rays(default_camera(b), cam_size, cam_size);
     const auto nodes = f.nodes();
     const auto tris = f.triangles();

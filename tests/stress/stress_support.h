@@ -21,6 +21,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <random>
 #include <vector>
 
 #include "cwbvh/compiler/compile.h"
@@ -311,6 +312,28 @@ inline void print_tally(const std::string& scene, const std::string& rays, const
                 (unsigned long long)s.agree, (unsigned long long)s.ties, (unsigned long long)s.false_miss,
                 (unsigned long long)s.false_hit, (unsigned long long)s.wrong_prim, (unsigned long long)s.t_error,
                 s.max_t_err);
+}
+
+/// Random segments: origins in the scene bounds grown by 50 % per side, each aimed at
+/// a point inside the bounds; every fourth ray has a finite tmax (0.75).
+inline std::vector<Ray> random_rays(const SceneBounds& b, size_t n, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::vector<Ray> rays;
+    for (size_t i = 0; i < n; ++i) {
+        Ray r;
+        for (int a = 0; a < 3; ++a) {
+            const double lo = b.lo[a], ext = double(b.hi[a]) - lo;
+            const double o = lo + (u(rng) * 2.0 - 0.5) * ext;  // bounds grown by 50% per side
+            const double t = lo + u(rng) * ext;                // a target inside the bounds
+            r.org[a] = float(o);
+            r.dir[a] = float(t - o);
+        }
+        r.tmin = 0.0f;
+        r.tmax = (i % 4 == 3) ? 0.75f : kInfinity;  // some finite segments
+        if (ray_is_traceable(r)) rays.push_back(r);
+    }
+    return rays;
 }
 
 }  // namespace cwbvh::stress

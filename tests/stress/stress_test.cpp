@@ -36,26 +36,6 @@ struct RaySet {
     std::vector<Ray> rays;
 };
 
-std::vector<Ray> random_rays(const SceneBounds& b, size_t n, uint32_t seed) {
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    std::vector<Ray> rays;
-    for (size_t i = 0; i < n; ++i) {
-        Ray r;
-        for (int a = 0; a < 3; ++a) {
-            const double lo = b.lo[a], ext = double(b.hi[a]) - lo;
-            const double o = lo + (u(rng) * 2.0 - 0.5) * ext;  // bounds grown by 50% per side
-            const double t = lo + u(rng) * ext;                // a target inside the bounds
-            r.org[a] = float(o);
-            r.dir[a] = float(t - o);
-        }
-        r.tmin = 0.0f;
-        r.tmax = (i % 4 == 3) ? 0.75f : kInfinity;  // some finite segments
-        if (ray_is_traceable(r)) rays.push_back(r);
-    }
-    return rays;
-}
-
 std::vector<RaySet> standard_rays(const File& f, size_t n_random, uint32_t cam_size) {
     const SceneBounds& b = *f.bounds();
     std::vector<RaySet> sets;
