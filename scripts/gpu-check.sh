@@ -12,6 +12,8 @@
 #
 # usage: scripts/gpu-check.sh [extra cwbvh_gpu_check args, e.g. --width 1024 --height 1024 --repeat 9]
 # env:   BUILD=build-gpu  ARCH=(CMAKE_CUDA_ARCHITECTURES, default: the project's 75/90 set)
+#        MIN_BLOCKS=N: the CWBVH kernel's __launch_bounds__ minimum blocks per SM (default 6 =
+#        80 registers; 8 = 64): register/occupancy experiments, use a separate BUILD folder
 #        CSV=path of the results table (default $BUILD/gpu_check.csv; commit a copy under
 #        bench/results/gpu/ with the command and the device)
 #        CWBVH_SANITIZE_GPU=0 skips the compute-sanitizer memcheck + racecheck pass (run last,
@@ -30,6 +32,7 @@ gen=()
 command -v ninja >/dev/null && gen=(-G Ninja)
 arch_args=()
 [[ -n "${ARCH:-}" ]] && arch_args=(-DCMAKE_CUDA_ARCHITECTURES="$ARCH")
+[[ -n "${MIN_BLOCKS:-}" ]] && arch_args+=(-DCWBVH_CWBVH_MIN_BLOCKS="$MIN_BLOCKS")
 cmake -S "$root" -B "$build" "${gen[@]}" -DCMAKE_BUILD_TYPE=Release -DCWBVH_BUILD_COMPILER=OFF \
   -DCWBVH_BUILD_TESTS=OFF -DCWBVH_CUDA=ON -DCMAKE_CUDA_COMPILER="$nvcc" \
   -DCWBVH_XXHASH_INCLUDE_DIR="$xx" "${arch_args[@]}" > "$build.configure.log" 2>&1 ||

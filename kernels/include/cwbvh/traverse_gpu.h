@@ -40,8 +40,14 @@ namespace gpu {
 inline constexpr int kCwbvhWarpsPerBlock = 4;
 inline constexpr int kCwbvhBlockThreads = kCwbvhWarpsPerBlock * kWarpSize;
 /// __launch_bounds__ minimum blocks per SM: 6 x 128 threads caps the kernel at
-/// 65536 / 768 = 85 -> 80 registers per thread (37.5 % occupancy on sm_90).
-inline constexpr int kCwbvhMinBlocksPerSm = 6;
+/// 65536 / 768 = 85 -> 80 registers per thread (37.5 % occupancy on sm_90), where it
+/// needs no spills (bench/results/ptxas-sm_90.txt). Issue 10's H100 run: this cap
+/// was 5-13 % faster than 128 registers, 8 blocks (64 registers, spills) -5 to +16 %.
+/// CMake -DCWBVH_CWBVH_MIN_BLOCKS=N (scripts/gpu-check.sh: MIN_BLOCKS=N) tries others.
+#ifndef CWBVH_CWBVH_MIN_BLOCKS
+#define CWBVH_CWBVH_MIN_BLOCKS 6
+#endif
+inline constexpr int kCwbvhMinBlocksPerSm = CWBVH_CWBVH_MIN_BLOCKS;
 
 // ---------------------------------------------------------------------------
 // CWBVH kernel body
