@@ -5,10 +5,12 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <new>
 #include <string>
-
+#include <system_error>
+#include <vector>
 
 #include "cwbvh/compiler/compile.h"
 
@@ -55,6 +57,42 @@ bool parse_float(const std::string& s, float& out) {
     if (s.empty() || *end != '\0' || !(v >= 0.0f) || !(v <= 1.0f)) return false;
     out = v;
     return true;
+}
+
+namespace fs = std::filesystem;
+
+/// Absolute path with every symlink in its existing prefix resolved and "." / ".." removed.
+fs::path normalized(const std::string& path) {
+    std::error_code ec;
+    fs::path p = fs::absolute(path, ec);
+    if (ec) return fs::path(path).lexically_normal();
+    const fs::path canonical = fs::weakly_canonical(p, ec);
+    return ec ? p.lexically_normal() : canonical;
+}
+
+/// True when `a` and `b` name one file: the same path after normalisation, or (both existing)
+/// the same device and inode, which also catches hard links and bind mounts.
+bool same_file(const std::string& a, const std::string& b) {
+    if (normalized(a) == normalized(b)) return true;
+    std::error_code ec;
+    const bool equivalent = fs::equivalent(a, b, ec);
+    return !ec && equivalent;
+}
+
+/// Checks an output path (-o or --stats-json) before anything is read or written: it must not be
+/// one of the files named on the command line (an input, or the other output), and if it exists it
+/// must be a regular file, since the writer replaces it by renaming a temporary file over it.
+/// Returns the one-line error, or "" when the path is fine.
+std::string check_output(const std::string& output, const std::vector<std::string>& others) {
+    for (const auto& other : others)
+        if (same_file(output, other))
+            return output + ": output is the same file as '" + other + "'; refusing to overwrite it";
+    std::error_code ec;
+    const fs::file_status status = fs::status(output, ec);  // follows symlinks
+    if (fs::is_directory(status)) return output + ": output is a directory";
+    if (fs::exists(status) && !fs::is_regular_file(status))
+        return output + ": output exists and is not a regular file";
+    return "";
 }
 
 }  // namespace
@@ -118,6 +156,19 @@ int main(int argc, char** argv) {
     }
     if (options.inputs.empty()) return usage_error("no input files");
     if (options.output.empty()) return usage_error("no output file (-o OUT.cwbvh)");
+
+    // Bad input rather than usage (exit 1): the arguments are well formed; what is wrong is the
+    // files they name, which is often only visible on disk (a symlink, a hard link).
+    std::vector<std::string> named = options.inputs;
+    std::string output_error = check_output(options.output, named);
+    if (output_error.empty() && !stats_json.empty()) {
+        named.push_back(options.output);
+        output_error = check_output(stats_json, named);
+    }
+    if (!output_error.empty()) {
+        std::fprintf(stderr, "cwbvhc: error: %s\n", output_error.c_str());
+        return 1;
+    }
 
     const bool tty = !quiet && isatty(STDERR_FILENO);
     PhaseCallback on_phase;

@@ -35,14 +35,16 @@ inline std::string shell_quote(const std::string& s) {
     return q + "'";
 }
 
-/// Runs bin/<tool> with arguments; captures stdout, stderr and the exit code.
-inline RunResult run_tool(const std::string& tool, const std::vector<std::string>& args) {
+/// Runs bin/<tool> with arguments (in `cwd` when given); captures stdout, stderr and the exit code.
+inline RunResult run_tool(const std::string& tool, const std::vector<std::string>& args,
+                          const std::filesystem::path& cwd = {}) {
     static int counter = 0;
     const auto dir = std::filesystem::temp_directory_path() / ("cwbvh_cli_" + std::to_string(::getpid()));
     std::filesystem::create_directories(dir);
     const auto out = dir / ("out" + std::to_string(counter));
     const auto err = dir / ("err" + std::to_string(counter++));
-    std::string cmd = shell_quote(std::string(CWBVH_BIN_DIR) + "/" + tool);
+    std::string cmd = cwd.empty() ? std::string() : "cd " + shell_quote(cwd.string()) + " && ";
+    cmd += shell_quote(std::string(CWBVH_BIN_DIR) + "/" + tool);
     for (const auto& a : args) cmd += " " + shell_quote(a);
     cmd += " >" + shell_quote(out.string()) + " 2>" + shell_quote(err.string());
     const int status = std::system(cmd.c_str());

@@ -1,7 +1,9 @@
 // End-to-end tests of the cwbvhc command: exit codes, one-line errors,
-// determinism across thread counts, --stats-json, and that what it writes
-// passes the loader's full validation.
+// refusing to write over its inputs, determinism across thread counts,
+// --stats-json, and that what it writes passes the loader's full validation.
 #include <gtest/gtest.h>
+
+#include <sys/stat.h>
 
 #include <filesystem>
 
@@ -60,6 +62,84 @@ TEST(CwbvhcCli, BadInputExitsOneWithOneLineNamingTheFile) {
     const auto directory = run_tool("cwbvhc", {dir.string(), "-o", out});
     EXPECT_EQ(directory.exit_code, 1);
     EXPECT_FALSE(fs::exists(out)) << "no output may be written on failure";
+}
+
+// Writing over an input must fail before anything is read or written: exit 1 (bad input:
+// the arguments parse, the files they name are wrong), one line naming the output, and the
+// input left byte-identical.
+void expect_refused(const cwbvh::test::RunResult& r, const fs::path& input, const std::string& before,
+                    const std::string& named) {
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_EQ(count_lines(r.err), 1) << r.err;
+    EXPECT_EQ(r.err.rfind("cwbvhc: error: " + named + ": ", 0), 0u) << r.err;
+    EXPECT_TRUE(r.out.empty()) << r.out;
+    EXPECT_EQ(cwbvh::test::slurp(input), before) << "the input was changed";
+}
+
+TEST(CwbvhcCli, RefusesToWriteOverAnInput) {
+    const auto dir = cwbvh::test::temp_dir("overwrite");
+    const auto mesh = dir / "a.obj";
+    cwbvh::test::write_obj(mesh, quad_vertices(), {{0, 1, 2}, {0, 2, 3}});
+    const std::string before = cwbvh::test::slurp(mesh);
+    ASSERT_FALSE(before.empty());
+
+    // Same path, absolute and relative.
+    expect_refused(run_tool("cwbvhc", {mesh.string(), "-o", mesh.string()}), mesh, before, mesh.string());
+    expect_refused(run_tool("cwbvhc", {"a.obj", "-o", "a.obj"}, dir), mesh, before, "a.obj");
+    // The same file by another spelling: ./, a detour through a subdirectory, absolute vs relative.
+    fs::create_directories(dir / "sub");
+    expect_refused(run_tool("cwbvhc", {"a.obj", "-o", "./a.obj"}, dir), mesh, before, "./a.obj");
+    expect_refused(run_tool("cwbvhc", {"./a.obj", "-o", "sub/../a.obj"}, dir), mesh, before, "sub/../a.obj");
+    expect_refused(run_tool("cwbvhc", {mesh.string(), "-o", "../a.obj"}, dir / "sub"), mesh, before, "../a.obj");
+    // A symlink to the input, either way round.
+    fs::create_symlink(mesh, dir / "link.obj");
+    expect_refused(run_tool("cwbvhc", {mesh.string(), "-o", (dir / "link.obj").string()}), mesh, before,
+                   (dir / "link.obj").string());
+    expect_refused(run_tool("cwbvhc", {(dir / "link.obj").string(), "-o", mesh.string()}), mesh, before,
+                   mesh.string());
+    // A hard link: another name, same device and inode.
+    fs::create_hard_link(mesh, dir / "hard.obj");
+    expect_refused(run_tool("cwbvhc", {mesh.string(), "-o", (dir / "hard.obj").string()}), mesh, before,
+                   (dir / "hard.obj").string());
+    EXPECT_EQ(cwbvh::test::slurp(dir / "hard.obj"), before);
+    // Any of several inputs counts, not only the first.
+    const auto other = dir / "b.obj";
+    cwbvh::test::write_obj(other, quad_vertices(), {{0, 1, 2}});
+    expect_refused(run_tool("cwbvhc", {other.string(), mesh.string(), "-o", (dir / "hard.obj").string()}), mesh,
+                   before, (dir / "hard.obj").string());
+    // --stats-json is an output too.
+    expect_refused(run_tool("cwbvhc", {"a.obj", "-o", "x.cwbvh", "--stats-json", "./link.obj"}, dir), mesh, before,
+                   "./link.obj");
+    EXPECT_FALSE(fs::exists(dir / "x.cwbvh")) << "nothing may be written when an output is refused";
+}
+
+TEST(CwbvhcCli, OutputMustBeARegularFileOrNew) {
+    const auto dir = cwbvh::test::temp_dir("output_kind");
+    const auto mesh = dir / "a.obj";
+    cwbvh::test::write_obj(mesh, quad_vertices(), {{0, 1, 2}, {0, 2, 3}});
+    const std::string before = cwbvh::test::slurp(mesh);
+
+    fs::create_directories(dir / "out_dir");
+    const auto to_dir = run_tool("cwbvhc", {mesh.string(), "-o", (dir / "out_dir").string()});
+    expect_refused(to_dir, mesh, before, (dir / "out_dir").string());
+    EXPECT_NE(to_dir.err.find("directory"), std::string::npos) << to_dir.err;
+
+    const auto fifo = dir / "out_fifo";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    const auto to_fifo = run_tool("cwbvhc", {mesh.string(), "-o", fifo.string()});
+    expect_refused(to_fifo, mesh, before, fifo.string());
+    EXPECT_NE(to_fifo.err.find("not a regular file"), std::string::npos) << to_fifo.err;
+    EXPECT_TRUE(fs::is_fifo(fifo)) << "the fifo must not be replaced";
+
+    // An existing, unrelated regular file is replaced as before.
+    const auto out = dir / "out.cwbvh";
+    std::ofstream(out) << "stale";
+    const auto r = run_tool("cwbvhc", {mesh.string(), "-o", out.string(), "--quiet"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    auto file = cwbvh::File::open(out.string());
+    ASSERT_TRUE(file.ok()) << file.error().describe();
+    EXPECT_EQ(file->stored_triangle_count(), 2u);
+    EXPECT_EQ(cwbvh::test::slurp(mesh), before);
 }
 
 TEST(CwbvhcCli, StatsJsonHasTheDocumentedKeysAndMatchesTheFile) {
