@@ -5,7 +5,8 @@
 # gpu_inputs/xxhash, saves ptxas -v for the device's arch, runs the check and the
 # benchmark on every gpu_inputs/*.cwbvh (synthetic scene if none), prints the table
 # last. Prepare gpu_inputs/ first with scripts/make-gpu-inputs.sh (on a machine with
-# the compiler's dependencies).
+# the compiler's dependencies; scenes travel as .cwbvh.xz and are unpacked here; with the
+# device tool: carry ["gpu_inputs"]).
 #
 # Rays come from the view catalog (views/catalog.txt: every view of each scene, inside the
 # enclosed ones; scene key = the .cwbvh file's stem), 2048x2048, primary + diffuse bounces 1-4.
@@ -51,6 +52,18 @@ if [[ -n "$cc" ]]; then
   nvidia-smi --query-gpu=name,driver_version,clocks.max.sm,clocks.max.mem --format=csv || true
 fi
 
+# Scenes travel xz-compressed (make-gpu-inputs.sh): unpack each once, with xz or Python.
+for z in "$inputs"/*.cwbvh.xz; do
+  [[ -e "$z" ]] || continue
+  [[ -f "${z%.xz}" && "${z%.xz}" -nt "$z" ]] && continue
+  if command -v xz >/dev/null; then
+    xz -dkc "$z" > "${z%.xz}.tmp"
+  else
+    python3 -c 'import lzma, shutil, sys; shutil.copyfileobj(lzma.open(sys.argv[1]), open(sys.argv[2], "wb"))' \
+      "$z" "${z%.xz}.tmp"
+  fi
+  mv "${z%.xz}.tmp" "${z%.xz}"
+done
 scenes=("$inputs"/*.cwbvh)
 [[ -e "${scenes[0]}" ]] || scenes=()
 csv=${CSV:-$build/gpu_check.csv}

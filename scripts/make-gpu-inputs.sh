@@ -3,11 +3,14 @@
 # has no Debian packages: compiled scenes (.cwbvh with the BVH2 section for the
 # baseline) and the xxhash header. Rays and CPU reference hits are generated in
 # process by cwbvh_gpu_check (same code on both machines), so no ray files travel.
-# Budget: the device tool carries at most 64 MiB with the working tree; scenes are
-# added in order while the total stays under CWBVH_GPU_INPUTS_MIB (default 56).
+# Budget: the device tool carries at most 64 MiB with the working tree, so scenes travel
+# xz-compressed (NAME.cwbvh.xz, about 4x smaller; gpu-check.sh unpacks them there) and are
+# added in order while the total stays under CWBVH_GPU_INPUTS_MIB (default 56). The
+# default set is issue 10's target scenes: 26 MiB compressed (the dragon alone is 19).
+# gpu_inputs/ is git-ignored: name it in the device tool's `carry`.
 #
 # usage: scripts/make-gpu-inputs.sh [SCENE...]   (default, in order of priority: bunny.obj
-#        sponza_dabrovic.glb oa_oacmpctf3.glb fg_cg57.glb dragon_res2.glb from
+#        sponza_dabrovic.glb oa_oacmpctf3.glb fg_cg57.glb dragon.glb from
 #        $CWBVH_SHARED_SCENES or ../shared/scenes; the file stem is the view catalog's
 #        scene key, so keep the names)
 # env:   CWBVHC=path/to/cwbvhc (default: build it in build/ with the full configuration)
@@ -22,7 +25,7 @@ if [[ ! -x "$cwbvhc" ]]; then
   ninja -C "$root/build" -j2 cwbvhc
 fi
 if [[ $# -eq 0 ]]; then
-  set -- bunny.obj sponza_dabrovic.glb oa_oacmpctf3.glb fg_cg57.glb dragon_res2.glb
+  set -- bunny.obj sponza_dabrovic.glb oa_oacmpctf3.glb fg_cg57.glb dragon.glb
 fi
 mkdir -p "$out/xxhash"
 cp /usr/include/xxhash.h "$out/xxhash/xxhash.h"
@@ -30,10 +33,10 @@ total=$(du -sb "$out/xxhash" | cut -f1)
 for s in "$@"; do
   src="$scenes_dir/$s"
   [[ -f "$src" ]] || { echo "skip $s: not found in $scenes_dir" >&2; continue; }
-  dst="$out/${s%.*}.cwbvh"
+  dst="$out/${s%.*}.cwbvh.xz"
   if [[ ! -f "$dst" ]]; then
-    "$cwbvhc" "$src" -o "$dst.tmp" --keep-sbvh --quiet --threads 2
-    mv "$dst.tmp" "$dst"
+    "$cwbvhc" "$src" -o "$out/${s%.*}.cwbvh" --keep-sbvh --quiet --threads 2
+    xz -T2 -6 -f "$out/${s%.*}.cwbvh"  # replaces NAME.cwbvh by NAME.cwbvh.xz
   fi
   size=$(stat -c %s "$dst")
   if (( total + size > budget_mib * 1048576 )); then
