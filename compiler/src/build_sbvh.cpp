@@ -36,6 +36,7 @@
 #include <tbb/task_group.h>
 
 #include "cwbvh/compiler/build.h"
+#include "cwbvh/compiler/progress.h"
 
 namespace cwbvh::compiler {
 namespace {
@@ -393,10 +394,13 @@ inline int bin_of_hi(const BinPlanes& p, float x) {
 
 class Builder {
 public:
-    Builder(const Scene& scene, const SbvhConfig& config) : scene_(scene), config_(config) {}
+    Builder(const Scene& scene, const SbvhConfig& config, Progress* progress)
+        : scene_(scene), config_(config), progress_(progress) {}
 
     /// Root of the build: the task-parallel top of the tree as pieces.
-    std::unique_ptr<Piece> build(RefList& refs, uint64_t budget) { return build_piece(refs, budget, 0, 0); }
+    std::unique_ptr<Piece> build(RefList& refs, uint64_t budget) {
+        return build_piece(refs, budget, 0, 0, scene_.triangle_count());
+    }
 
     uint64_t spatial_splits() const { return spatial_splits_.load(); }
     uint64_t object_splits() const { return object_splits_.load(); }
@@ -477,18 +481,30 @@ private:
 
     /// Top of the tree: nodes of at least kTaskRefs references; their two
     /// children are built as parallel tasks. Smaller subtrees become blocks.
-    std::unique_ptr<Piece> build_piece(RefList& refs, uint64_t budget, int depth, int chops) {
+    /// `weight`: the piece's share of the progress units (the root has the
+    /// scene's triangle count; a split hands it on in proportion to the
+    /// children's references, remainder to the right), added when its block
+    /// is done, so the blocks add up to the triangle count exactly however
+    /// many references the spatial splits make. Never read by the build.
+    std::unique_ptr<Piece> build_piece(RefList& refs, uint64_t budget, int depth, int chops, uint64_t weight) {
         auto piece = std::make_unique<Piece>();
         if (refs.size() < kTaskRefs) {
             piece->block.reserve(2 * refs.size() - 1);  // exact without spatial splits
             build_block(piece->block, refs, budget, depth, chops);
+            progress_add(progress_, weight);  // one relaxed atomic per block (< kTaskRefs references)
             return piece;
         }
         Children kids;
-        if (!split_node(refs, budget, depth, chops, piece->node.box, kids)) return piece;  // unreachable: n >= 2
+        if (!split_node(refs, budget, depth, chops, piece->node.box, kids)) {  // unreachable: n >= 2
+            progress_add(progress_, weight);
+            return piece;
+        }
+        // weight <= triangles < 2^30 and nl < 2^32: the product fits in 64 bits.
+        const uint64_t nl = kids.left.size(), nr = kids.right.size();
+        const uint64_t weight_left = weight * nl / (nl + nr);
         tbb::task_group g;
-        g.run([&] { piece->child[0] = build_piece(kids.left, kids.budget_left, depth + 1, kids.chops); });
-        piece->child[1] = build_piece(kids.right, kids.budget_right, depth + 1, kids.chops);
+        g.run([&] { piece->child[0] = build_piece(kids.left, kids.budget_left, depth + 1, kids.chops, weight_left); });
+        piece->child[1] = build_piece(kids.right, kids.budget_right, depth + 1, kids.chops, weight - weight_left);
         g.wait();
         return piece;
     }
@@ -719,6 +735,7 @@ private:
 
     const Scene& scene_;
     const SbvhConfig& config_;
+    Progress* progress_;  ///< optional; written only, never read by the build
     double root_area_ = 0.0;
     std::atomic<uint64_t> spatial_splits_{0}, object_splits_{0};
 };
@@ -753,7 +770,8 @@ void flatten(Piece& p, std::vector<BinaryNode>& out) {
 
 }  // namespace
 
-bool build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out, std::string& error) {
+bool build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out, std::string& error,
+                Progress* progress) {
     out = BinaryBvh{};
     const size_t tris = scene.triangle_count();
     if (tris == 0) { error = "build_sbvh: the scene has no triangles"; return false; }
@@ -783,7 +801,7 @@ bool build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out, st
             for (const Vec3& v : scene.triangle(i)) b.grow(v);
             refs[i] = Ref{b, uint32_t(i)};
         }
-        Builder builder(scene, config);
+        Builder builder(scene, config, progress);
         const std::unique_ptr<Piece> root = builder.build(refs, extra);
         out.nodes.clear();
         out.nodes.reserve(piece_nodes(*root));  // exact: no reallocation copy

@@ -151,7 +151,8 @@ bool add_internal_child(const BinaryBvh& binary, uint32_t binary_node, uint32_t 
 
 }  // namespace detail
 
-bool collapse_wide(const BinaryBvh& binary, const CollapseConfig& config, WideBvh& out, std::string& error) {
+bool collapse_wide(const BinaryBvh& binary, const CollapseConfig& config, WideBvh& out, std::string& error,
+                   Progress* progress) {
     out = WideBvh{};
     if (config.max_leaf < 1 || config.max_leaf > kMaxLeafTriangles) {
         error = "collapse: max_leaf must be 1.." + std::to_string(kMaxLeafTriangles);
@@ -166,8 +167,8 @@ bool collapse_wide(const BinaryBvh& binary, const CollapseConfig& config, WideBv
     if (!detail::check_binary(binary, ref_count, error)) return false;
     out.binary_leaf_ref.assign(binary.nodes.size(), kInvalidIndex);
     switch (config.kind) {
-        case kCollapseOptimal: return detail::collapse_optimal(binary, config, ref_count, out, error);
-        case kCollapseGreedy: return detail::collapse_greedy(binary, config, ref_count, out, error);
+        case kCollapseOptimal: return detail::collapse_optimal(binary, config, ref_count, out, error, progress);
+        case kCollapseGreedy: return detail::collapse_greedy(binary, config, ref_count, out, error, progress);
     }
     error = "collapse: unknown collapse kind";
     return false;

@@ -5,12 +5,18 @@
 // be a leaf, until there are 8 children or none can be opened. A subtree with
 // <= max_leaf references becomes a wide leaf, any other child a wide node.
 #include "cwbvh/compiler/collapse.h"
+#include "cwbvh/compiler/progress.h"
 
 namespace cwbvh::compiler::detail {
 
 bool collapse_greedy(const BinaryBvh& binary, const CollapseConfig& config,
-                     const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error) {
+                     const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error,
+                     Progress* progress) {
     const uint32_t max_leaf = uint32_t(config.max_leaf);
+    // Progress, one per binary node: every node is the binary node of a wide
+    // node, opened while gathering children, or inside a leaf's subtree
+    // (a subtree of r binary leaves has 2r - 1 nodes).
+    ProgressBatch visited(progress);
     struct Work {
         uint32_t binary;
         uint32_t wide;
@@ -25,10 +31,11 @@ bool collapse_greedy(const BinaryBvh& binary, const CollapseConfig& config,
         uint32_t children[kWidth];
         int count = 0;
         if (b.is_leaf()) {
-            children[count++] = w.binary;  // only the root: one leaf child
+            children[count++] = w.binary;  // only the root: one leaf child (counted as that leaf)
         } else {
             children[count++] = b.child[0];
             children[count++] = b.child[1];
+            visited.add(1);
         }
         while (count < kWidth) {
             int best = -1;
@@ -48,11 +55,13 @@ bool collapse_greedy(const BinaryBvh& binary, const CollapseConfig& config,
             children[best] = open.child[0];
             children[best + 1] = open.child[1];
             ++count;
+            visited.add(1);
         }
         for (int c = 0; c < count; ++c) {
             const uint32_t m = children[c];
             if (ref_count[m] <= max_leaf) {
                 out.nodes[w.wide].slots[c] = make_wide_leaf(binary, m, out);
+                visited.add(2 * uint64_t(ref_count[m]) - 1);  // ref_count[m] <= max_leaf: exact
                 continue;
             }
             uint32_t child = 0;

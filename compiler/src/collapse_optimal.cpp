@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "cwbvh/compiler/collapse.h"
+#include "cwbvh/compiler/progress.h"
 
 #include <cassert>
 
@@ -78,10 +79,13 @@ private:
 
 /// The DP sweep with a given cost store; false if the store cannot serve the
 /// tree's order (CostStack on a tree that is not in preorder).
+/// `progress` advances by one per node swept, in batches; a sweep that fails
+/// takes its count back (the fallback sweeps again).
 template <class Store>
 bool run_dp(const BinaryBvh& binary, const CollapseConfig& config, const std::vector<uint32_t>& ref_count,
-            Store& store, std::vector<Decision>& dec) {
+            Store& store, std::vector<Decision>& dec, Progress* progress) {
     const size_t n = binary.nodes.size();
+    ProgressBatch swept(progress);
     const double c_node = config.cost_node, c_prim = config.cost_prim;
     const double inf = std::numeric_limits<double>::infinity();
     // Children have larger indices than parents (checked): a reverse sweep is
@@ -89,6 +93,7 @@ bool run_dp(const BinaryBvh& binary, const CollapseConfig& config, const std::ve
     for (size_t idx = n; idx-- > 0;) {
         const BinaryNode& b = binary.nodes[idx];
         Decision& d = dec[idx];
+        swept.add(1);
         Costs out;
         const double area = b.box.half_area();
         const double leaf_cost = ref_count[idx] <= uint32_t(config.max_leaf)
@@ -105,7 +110,10 @@ bool run_dp(const BinaryBvh& binary, const CollapseConfig& config, const std::ve
             continue;
         }
         Costs l, r;  // in a reverse preorder sweep the left subtree finished last
-        if (!store.take(b.child[0], l) || !store.take(b.child[1], r)) return false;
+        if (!store.take(b.child[0], l) || !store.take(b.child[1], r)) {
+            swept.retract();
+            return false;
+        }
         double best_children = inf;
         int best_k = 1;
         for (int k = 1; k <= kMaxRoots; ++k) {  // left gets k roots, right 8 - k (both >= 1)
@@ -165,12 +173,13 @@ int wide_roots(const BinaryBvh& binary, const std::vector<Decision>& dp, uint32_
 }  // namespace
 
 bool collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
-                      const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error) {
+                      const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error,
+                      Progress* progress) {
     std::vector<Decision> dp(binary.nodes.size());
     CostStack stack;
-    if (!run_dp(binary, config, ref_count, stack, dp)) {
+    if (!run_dp(binary, config, ref_count, stack, dp, progress)) {
         CostArray array(binary.nodes.size());
-        run_dp(binary, config, ref_count, array, dp);
+        run_dp(binary, config, ref_count, array, dp, progress);
     }
 
     // Backtracking: create wide nodes top-down. Each wide node gets the roots

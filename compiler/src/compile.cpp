@@ -17,6 +17,7 @@
 #include "cwbvh/compiler/emit.h"
 #include "cwbvh/compiler/import.h"
 #include "cwbvh/compiler/model.h"
+#include "cwbvh/compiler/progress.h"
 #include "cwbvh/compiler/sah_report.h"
 
 namespace cwbvh::compiler {
@@ -44,12 +45,15 @@ uint64_t rss_now_bytes() {
 /// they stay resident and add to the peak.
 void release_free_heap() { malloc_trim(0); }
 
-/// Times one phase and reports it through the callback.
+/// Times one phase and reports it through the callback and the progress channel.
 class PhaseTimer {
 public:
-    PhaseTimer(CompileStats& stats, const PhaseCallback& cb) : stats_(stats), cb_(cb) {}
+    PhaseTimer(CompileStats& stats, const PhaseCallback& cb, Progress* progress)
+        : stats_(stats), cb_(cb), progress_(progress) {}
+    /// `units`: what the phase adds to the progress channel in all (0: not counted).
     template <class F>
-    bool run(const std::string& name, F&& body) {
+    bool run(const std::string& name, uint64_t units, F&& body) {
+        if (progress_) progress_->reset(units);  // before the callback: a display it wakes sees the new total
         if (cb_) cb_(name, false, 0.0);
         const auto start = std::chrono::steady_clock::now();
         const bool ok = body();
@@ -67,15 +71,16 @@ public:
 private:
     CompileStats& stats_;
     const PhaseCallback& cb_;
+    Progress* progress_;
 };
 
 
 bool compile_phases(const CompileOptions& options, CompileStats& stats, std::string& error,
-                    const PhaseCallback& on_phase) {
-    PhaseTimer timer(stats, on_phase);
+                    const PhaseCallback& on_phase, Progress* progress) {
+    PhaseTimer timer(stats, on_phase, progress);
 
     Scene scene;
-    if (!timer.run("import", [&] {
+    if (!timer.run("import", 0, [&] {
             ImportOptions import_options;
             return import_scene(options.inputs, import_options, scene, error, stats.warnings);
         }))
@@ -95,9 +100,10 @@ bool compile_phases(const CompileOptions& options, CompileStats& stats, std::str
     sbvh_config.split_alpha = options.split_alpha;
     sbvh_config.threads = options.threads;
     sbvh_config.max_reference_growth = options.max_reference_growth;
-    if (!timer.run(options.builder == kBuilderEmbree ? "embree" : "sbvh", [&] {
-            return options.builder == kBuilderEmbree ? build_embree(scene, sbvh_config, binary, error)
-                                                     : build_sbvh(scene, sbvh_config, binary, error);
+    const bool embree = options.builder == kBuilderEmbree;
+    if (!timer.run(embree ? "embree" : "sbvh", embree ? 0 : scene.triangle_count(), [&] {
+            return embree ? build_embree(scene, sbvh_config, binary, error)
+                          : build_sbvh(scene, sbvh_config, binary, error, progress);
         }))
         return false;
     stats.references = binary.references;
@@ -110,9 +116,11 @@ bool compile_phases(const CompileOptions& options, CompileStats& stats, std::str
     stats.sah_binary = report_sah_binary(binary);
 
     WideBvh wide;
-    if (!timer.run("collapse", [&] { return collapse_wide(binary, collapse_config, wide, error); })) return false;
-    if (!timer.run("slots", [&] {
-            assign_slots(wide);
+    if (!timer.run("collapse", binary.nodes.size(),
+                   [&] { return collapse_wide(binary, collapse_config, wide, error, progress); }))
+        return false;
+    if (!timer.run("slots", wide.nodes.size(), [&] {
+            assign_slots(wide, progress);
             return true;
         }))
         return false;
@@ -132,13 +140,13 @@ bool compile_phases(const CompileOptions& options, CompileStats& stats, std::str
     emit.sbvh = &sbvh_config;
     emit.sah_binary = stats.sah_binary;
     EmitResult emitted;
-    if (!timer.run("encode", [&] { return encode_scene(emit, emitted, error); })) return false;
+    if (!timer.run("encode", 0, [&] { return encode_scene(emit, emitted, error); })) return false;
     stats.wide_nodes = emitted.wide_nodes;
     stats.wide_depth = emitted.wide_depth;
     stats.avg_children = emitted.avg_children;
     stats.max_leaf_triangles = emitted.max_leaf_triangles;
     stats.sah_wide = emitted.sah_wide;
-    if (!timer.run("write", [&] { return write_scene(emit, emitted, stats.bytes, stats.file_bytes, error); }))
+    if (!timer.run("write", 0, [&] { return write_scene(emit, emitted, stats.bytes, stats.file_bytes, error); }))
         return false;
 
     stats.peak_rss_bytes = peak_rss_bytes();
@@ -147,12 +155,13 @@ bool compile_phases(const CompileOptions& options, CompileStats& stats, std::str
 
 }  // namespace
 
-bool compile(const CompileOptions& options, CompileStats& stats, std::string& error, const PhaseCallback& on_phase) {
-    if (options.threads <= 0) return compile_phases(options, stats, error, on_phase);
+bool compile(const CompileOptions& options, CompileStats& stats, std::string& error, const PhaseCallback& on_phase,
+             Progress* progress) {
+    if (options.threads <= 0) return compile_phases(options, stats, error, on_phase, progress);
     // Every parallel phase (SBVH, slots, ...) runs with at most `threads` threads.
     tbb::task_arena arena(options.threads);
     bool ok = false;
-    arena.execute([&] { ok = compile_phases(options, stats, error, on_phase); });
+    arena.execute([&] { ok = compile_phases(options, stats, error, on_phase, progress); });
     return ok;
 }
 

@@ -3,16 +3,23 @@
 //   exit 0: success   exit 1: bad input (one line on stderr)   exit 2: usage error
 #include <unistd.h>
 
+#include <algorithm>
+#include <chrono>
+#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <new>
+#include <optional>
 #include <string>
 #include <system_error>
+#include <thread>
 #include <vector>
 
 #include "cwbvh/compiler/compile.h"
+#include "cwbvh/compiler/progress.h"
 
 namespace {
 
@@ -95,6 +102,74 @@ std::string check_output(const std::string& output, const std::vector<std::strin
     return "";
 }
 
+/// The terminal's phase line (only when stderr is a terminal and not --quiet): "<phase> ..." when
+/// a phase starts, "<phase> <seconds> s" when it ends and, once a counted phase has run for more
+/// than kDelay, "<phase> <percent>%" from a ticker thread every kTick while the percentage moves.
+/// Every write to stderr happens under mutex_; stop() joins the ticker, after which it writes nothing.
+class PhaseLine {
+public:
+    explicit PhaseLine(const cwbvh::compiler::Progress& progress) : progress_(progress), ticker_([this] { tick(); }) {}
+    ~PhaseLine() { stop(); }
+    PhaseLine(const PhaseLine&) = delete;
+    PhaseLine& operator=(const PhaseLine&) = delete;
+
+    /// The PhaseCallback: runs on the thread that runs compile().
+    void on_phase(const std::string& phase, bool done, double seconds) {
+        const std::lock_guard<std::mutex> lock(mutex_);
+        if (!done) {
+            std::fprintf(stderr, "\r\033[K[cwbvhc] %s ...", phase.c_str());
+            phase_ = phase;
+            started_ = Clock::now();
+            running_ = true;
+            shown_ = -1;
+        } else {
+            running_ = false;
+            std::fprintf(stderr, "\r\033[K[cwbvhc] %-10s %8.3f s\n", phase.c_str(), seconds);
+        }
+    }
+
+    /// Stops and joins the ticker (idempotent).
+    void stop() {
+        {
+            const std::lock_guard<std::mutex> lock(mutex_);
+            stop_ = true;
+        }
+        wake_.notify_all();
+        if (ticker_.joinable()) ticker_.join();
+    }
+
+private:
+    using Clock = std::chrono::steady_clock;
+    static constexpr std::chrono::milliseconds kDelay{1000}, kTick{200};
+
+    void tick() {
+        std::unique_lock<std::mutex> lock(mutex_);
+        while (!wake_.wait_for(lock, kTick, [this] { return stop_; })) {
+            if (!running_ || Clock::now() - started_ <= kDelay) continue;
+            // Relaxed loads: compile() resets the channel before the start callback, which took
+            // mutex_, so these see this phase's total (or a later one's); clamp whatever they see.
+            const uint64_t total = progress_.total.load(std::memory_order_relaxed);
+            if (total == 0) continue;  // not counted: the start line stays as it is
+            const uint64_t done = progress_.done.load(std::memory_order_relaxed);
+            // Rounded down, so 100 % only once all is done.
+            const int percent = int(std::clamp(100.0 * double(done) / double(total), 0.0, 100.0));
+            if (percent == shown_) continue;
+            shown_ = percent;
+            std::fprintf(stderr, "\r\033[K[cwbvhc] %-10s %3d%%", phase_.c_str(), percent);
+        }
+    }
+
+    const cwbvh::compiler::Progress& progress_;
+    std::mutex mutex_;
+    std::condition_variable wake_;
+    bool stop_ = false;
+    bool running_ = false;  ///< a phase has started and not ended
+    std::string phase_;
+    Clock::time_point started_{};
+    int shown_ = -1;        ///< percentage on the line now (-1: none)
+    std::thread ticker_;    ///< last: starts once everything above is initialised
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -171,13 +246,13 @@ int main(int argc, char** argv) {
     }
 
     const bool tty = !quiet && isatty(STDERR_FILENO);
+    Progress progress;
+    std::optional<PhaseLine> line;
     PhaseCallback on_phase;
     if (tty) {
-        on_phase = [](const std::string& phase, bool done, double seconds) {
-            if (!done)
-                std::fprintf(stderr, "\r\033[K[cwbvhc] %s ...", phase.c_str());
-            else
-                std::fprintf(stderr, "\r\033[K[cwbvhc] %-10s %8.3f s\n", phase.c_str(), seconds);
+        line.emplace(progress);
+        on_phase = [&line](const std::string& phase, bool done, double seconds) {
+            line->on_phase(phase, done, seconds);
         };
     }
 
@@ -185,10 +260,12 @@ int main(int argc, char** argv) {
     std::string error;
     bool ok = false;
     try {
-        ok = compile(options, stats, error, on_phase);  // all phases in a task arena of --threads
+        // All phases in a task arena of --threads; the progress channel only for the phase line.
+        ok = compile(options, stats, error, on_phase, tty ? &progress : nullptr);
     } catch (const std::bad_alloc&) {
         error = options.inputs.front() + ": out of memory while compiling";
     }
+    if (line) line->stop();  // no phase-line output after this, whatever happened
     if (!ok) {
         if (tty) std::fputs("\n", stderr);
         std::fprintf(stderr, "cwbvhc: error: %s\n", error.c_str());

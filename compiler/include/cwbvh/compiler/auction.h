@@ -10,13 +10,16 @@
 
 namespace cwbvh::compiler {
 
+struct Progress;
+
 /// Permutes the children of every wide node so that slot s holds the child
 /// for which a ray of octant s (bit 2 = x<0, bit 1 = y<0, bit 0 = z<0) is
 /// most likely to be traversed first: minimises sum_c cost(c, slot(c)) with
 ///   cost(c, s) = dot(centre(c) - centre(parent), d_s),
 ///   d_s[a] = -1 if bit (2-a) of s is set, else +1.
-/// Deterministic.
-void assign_slots(WideBvh& wide);
+/// Deterministic. `progress` (optional) advances by one per wide node, by
+/// exactly wide.nodes.size() in all; it never influences the slots.
+void assign_slots(WideBvh& wide, Progress* progress = nullptr);
 
 /// Exact maximum-benefit assignment of 8 persons to 8 objects for integer
 /// benefits |b| <= 2^40: forward auction, Gauss–Seidel bidding (lowest

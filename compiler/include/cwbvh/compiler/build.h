@@ -17,6 +17,8 @@
 
 namespace cwbvh::compiler {
 
+struct Progress;
+
 struct SbvhConfig {
     /// Stich et al. 2009, section 4.5: spatial splits are only tried at a node
     /// when the surface area of the overlap of the best object split's two
@@ -46,8 +48,11 @@ struct SbvhConfig {
     int threads = 0;
 };
 
+/// `progress` (optional) gets the scene's triangle count spread over the
+/// subtrees as they finish: it has advanced by exactly triangle_count() when
+/// this returns true. It never influences the tree.
 [[nodiscard]] bool build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out,
-                              std::string& error);
+                              std::string& error, Progress* progress = nullptr);
 [[nodiscard]] bool build_embree(const Scene& scene, const SbvhConfig& config, BinaryBvh& out,
                                 std::string& error);
 

@@ -10,6 +10,8 @@
 
 namespace cwbvh::compiler {
 
+struct Progress;
+
 /// Collapses a binary BVH with one triangle reference per leaf into an 8-wide
 /// BVH with <= config.max_leaf (<= 3) triangles per leaf. The root is always an
 /// internal wide node (a one-triangle scene gives a root with one leaf child).
@@ -22,8 +24,10 @@ namespace cwbvh::compiler {
 /// wide leaf are stored once. Children occupy slots 0..k-1; call
 /// assign_slots() to order them. Errors: malformed binary trees (bad child
 /// index, shared or unreachable node, empty/non-finite box), bad config.
+/// `progress` (optional) advances by one per binary node, by exactly
+/// binary.nodes.size() when this returns true; it never influences the tree.
 [[nodiscard]] bool collapse_wide(const BinaryBvh& binary, const CollapseConfig& config, WideBvh& out,
-                                 std::string& error);
+                                 std::string& error, Progress* progress = nullptr);
 
 /// SAH cost of a wide tree, normalised by the root's area (spec formula):
 ///   sum over internal nodes C_node * A(n) / A(root)
@@ -58,9 +62,11 @@ WideChild make_wide_leaf(const BinaryBvh& binary, uint32_t node, WideBvh& wide);
 uint32_t distinct_leaf_triangles(const BinaryBvh& binary, uint32_t node);
 
 bool collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
-                      const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error);
+                      const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error,
+                      Progress* progress = nullptr);
 bool collapse_greedy(const BinaryBvh& binary, const CollapseConfig& config,
-                     const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error);
+                     const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error,
+                     Progress* progress = nullptr);
 }  // namespace detail
 
 }  // namespace cwbvh::compiler

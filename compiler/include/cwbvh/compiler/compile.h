@@ -12,6 +12,8 @@
 
 namespace cwbvh::compiler {
 
+struct Progress;
+
 struct CompileOptions {
     std::vector<std::string> inputs;
     std::string output;
@@ -57,8 +59,13 @@ using PhaseCallback = std::function<void(const std::string& phase, bool done, do
 
 /// Runs the pipeline. On bad input returns false and sets `error` to one line
 /// naming the file and what is wrong.
+/// `progress` (optional, progress.h) is reset before each phase's start callback to the
+/// units that phase counts (sbvh: triangles, collapse: binary nodes, slots: wide nodes;
+/// 0 for import, embree, encode and write, which are not counted) and advanced by the
+/// phase from its worker threads; a counted phase ends with done == total. It is only
+/// ever written: the output file is the same with or without it.
 [[nodiscard]] bool compile(const CompileOptions& options, CompileStats& stats, std::string& error,
-                           const PhaseCallback& on_phase = {});
+                           const PhaseCallback& on_phase = {}, Progress* progress = nullptr);
 
 /// JSON for --stats-json (keys documented in README).
 std::string stats_to_json(const CompileStats& stats);
