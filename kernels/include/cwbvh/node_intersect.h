@@ -136,17 +136,32 @@ CWBVH_HD CWBVH_INLINE uint32_t zero_axes_filter(const CwbvhNode& n, const NodeRa
 }
 
 /// Meta byte decode (paper; cwbvh-facts 1.2) of the slots in `slots` (bit s = slot
-/// s, non-empty): bit 4 of meta & (meta << 1) is set exactly when the low five bits
-/// are >= 24, i.e. for an internal child, whose low bits 24 + s become
-/// 24 + (s ^ octinv); a leaf keeps its triangle offset. The top three bits are 1 for
-/// an internal child and the unary triangle count for a leaf, so one shift sets one
-/// node bit or up to three triangle bits.
-CWBVH_HD CWBVH_INLINE uint32_t meta_bits(uint32_t meta, uint32_t octinv) {
-    const uint32_t is_inner = (meta & (meta << 1)) & 0x10u;
-    const uint32_t inner_mask = is_inner ? 0x1Fu : 0u;
-    const uint32_t bit_index = (meta ^ (octinv & inner_mask)) & 0x1Fu;
-    const uint32_t child_bits = (meta >> 5) & 7u;
-    return child_bits << bit_index;
+/// s): bit 4 of meta & (meta << 1) is set exactly when the low five bits are >= 24,
+/// i.e. for an internal child, whose low bits 24 + s become 24 + (s ^ octinv); a leaf
+/// keeps its triangle offset. The top three bits are 1 for an internal child and the
+/// unary triangle count for a leaf, so one shift sets one node bit or up to three
+/// triangle bits; an empty slot (meta 0) sets none, so `slots` may include empty ones.
+/// Four slots per word, byte-parallel: no carry crosses a byte (bit 4 of m & (m << 1)
+/// comes from bits 3 and 4 of the same byte, and each byte of `inner` is 0 or 1 before
+/// the multiplication by 0x1F). meta_w: the node's eight meta bytes as two words.
+CWBVH_HD CWBVH_INLINE uint32_t meta_hit_bits(const uint32_t meta_w[2], uint32_t octinv, uint32_t slots) {
+    uint32_t bits_w[2], index_w[2];
+    const uint32_t octinv4 = octinv * 0x01010101u;
+    CWBVH_UNROLL
+    for (int h = 0; h < 2; ++h) {
+        const uint32_t m = meta_w[h];
+        const uint32_t inner = ((m & (m << 1)) >> 4) & 0x01010101u;
+        index_w[h] = (m ^ (octinv4 & (inner * 0x1Fu))) & 0x1F1F1F1Fu;
+        bits_w[h] = (m >> 5) & 0x07070707u;
+    }
+    uint32_t hitmask = 0;
+    CWBVH_UNROLL
+    for (int s = 0; s < kWidth; ++s) {
+        const uint32_t bits = (bits_w[s >> 2] >> (8 * (s & 3))) & 0x7u;
+        const uint32_t index = (index_w[s >> 2] >> (8 * (s & 3))) & 0x1Fu;
+        hitmask |= (((slots >> s) & 1u) ? bits : 0u) << index;
+    }
+    return hitmask;
 }
 
 /// Hit mask of a node in the paper's layout: for each slot s whose box the ray
@@ -197,26 +212,7 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_scalar(const CwbvhNode& n, const N
         slots |= uint32_t(tnear <= tfar) << s;
     }
     if (r.zero_axes != 0 && slots != 0) slots = zero_axes_filter(n, r, slots);
-    // meta_bits for four slots at once, byte-parallel in a word (no carry crosses a
-    // byte: bit 4 of m & (m << 1) comes from bits 3 and 4 of the same byte, and each
-    // byte of `inner` is 0 or 1 before the multiplication by 0x1F).
-    uint32_t bits_w[2], index_w[2];
-    const uint32_t octinv4 = r.octinv * 0x01010101u;
-    CWBVH_UNROLL
-    for (int h = 0; h < 2; ++h) {
-        const uint32_t m = meta_w[h];
-        const uint32_t inner = ((m & (m << 1)) >> 4) & 0x01010101u;
-        index_w[h] = (m ^ (octinv4 & (inner * 0x1Fu))) & 0x1F1F1F1Fu;
-        bits_w[h] = (m >> 5) & 0x07070707u;
-    }
-    uint32_t hitmask = 0;
-    CWBVH_UNROLL
-    for (int s = 0; s < kWidth; ++s) {
-        const uint32_t bits = (bits_w[s >> 2] >> (8 * (s & 3))) & 0x7u;
-        const uint32_t index = (index_w[s >> 2] >> (8 * (s & 3))) & 0x1Fu;
-        hitmask |= (((slots >> s) & 1u) ? bits : 0u) << index;
-    }
-    return hitmask;
+    return meta_hit_bits(meta_w, r.octinv, slots);
 }
 
 #if CWBVH_NODE_SSE
@@ -268,17 +264,11 @@ inline uint32_t intersect_node_sse(const CwbvhNode& n, const NodeRay& r, float t
     axis(2, _mm_shuffle_ps(adj, adj, 0xAA), _mm_shuffle_ps(on, on, 0xAA), _mm_shuffle_ps(of, of, 0xAA));
     const uint32_t box_hits = uint32_t(_mm_movemask_ps(_mm_cmple_ps(tn0, tf0))) |
                               (uint32_t(_mm_movemask_ps(_mm_cmple_ps(tn1, tf1))) << 4);
-    const __m128i meta = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(n.meta));
-    const uint32_t empty = uint32_t(_mm_movemask_epi8(_mm_cmpeq_epi8(meta, zero))) & 0xFFu;
-    uint32_t slots = box_hits & ~empty;
+    uint32_t slots = box_hits;
     if (r.zero_axes != 0 && slots != 0) slots = zero_axes_filter(n, r, slots);
-    uint32_t hitmask = 0;
-    while (slots != 0) {
-        const int s = __builtin_ctz(slots);
-        slots &= slots - 1u;
-        hitmask |= meta_bits(n.meta[s], r.octinv);
-    }
-    return hitmask;
+    uint32_t meta_w[2];
+    memcpy(meta_w, n.meta, sizeof meta_w);
+    return meta_hit_bits(meta_w, r.octinv, slots);
 }
 #endif
 
