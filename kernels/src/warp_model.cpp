@@ -123,7 +123,7 @@ private:
 
     void finish(Lane& lane, TraceStatus status) {
         Hit h = make_miss();
-        if (status == TraceStatus::kOk && lane.l.hit_tri != kNoTriangle) h = lane_hit(lane.l, tris_[lane.l.hit_tri]);
+        if (lane.l.hit_tri != kNoTriangle) h = lane_hit(lane.l, tris_[lane.l.hit_tri]);  // as traverse.h
         hits_[lane.ray_id] = h;
         s_.hits += h.prim != kMissPrim;
         s_.stack_overflows += status == TraceStatus::kStackOverflow;

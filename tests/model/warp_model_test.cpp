@@ -141,6 +141,39 @@ TEST(WarpModel, PoliciesChangeTheScheduleNotTheAnswers) {
     EXPECT_GT(postponed_always, postponed_node_work) << "the kernel's rule postpones lanes without node work too";
 }
 
+TEST(WarpModel, CorruptTreeGivesTheReferencesStatusAndHitSoFar) {
+    const Fixture& f = fixture();
+    // A node whose children point past NODE: rays that reach it end with kBadIndex and,
+    // as in traverse.h, keep the closest hit found before.
+    std::vector<CwbvhNode> nodes = f.scene.nodes;
+    size_t corrupt = nodes.size();  // the last node with internal children
+    for (size_t i = nodes.size(); i-- > 1;)
+        if (nodes[i].imask != 0) {
+            corrupt = i;
+            break;
+        }
+    ASSERT_LT(corrupt, nodes.size());
+    nodes[corrupt].child_base = 0x7FFFFFF0u;
+    std::vector<Hit> ref(f.rays.size()), hits(f.rays.size());
+    std::vector<TraceStatus> status(f.rays.size());
+    CpuTraceOptions co;
+    co.threads = 1;
+    co.statuses = status.data();
+    trace_cwbvh_cpu(nodes.data(), nodes.size(), f.scene.triangles.data(), f.scene.triangles.size(), f.rays.data(),
+                    ref.data(), f.rays.size(), co);
+    uint64_t bad = 0;
+    for (TraceStatus s : status) bad += s == TraceStatus::kBadIndex;
+    WarpModelOptions o;
+    o.postpone = false;  // the reference's order of triangle tests, so the same hit so far
+    o.warps = 8;
+    const WarpModelStats s = model_cwbvh_warps(nodes.data(), nodes.size(), f.scene.triangles.data(),
+                                               f.scene.triangles.size(), f.rays.data(), hits.data(), f.rays.size(), o);
+    ASSERT_GT(bad, 0u) << "the corrupt node is reached by some ray";
+    EXPECT_EQ(s.bad_indices, bad);
+    for (size_t i = 0; i < ref.size(); ++i)
+        ASSERT_EQ(std::memcmp(&hits[i], &ref[i], sizeof(Hit)), 0) << "ray " << i;
+}
+
 TEST(WarpModel, StatisticsAreConsistent) {
     const Fixture& f = fixture();
     WarpModelOptions o;

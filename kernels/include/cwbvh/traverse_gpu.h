@@ -163,9 +163,10 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
             if (active && pop_if_idle(l, stack)) finish(TraceStatus::kOk);
             if (ending != kRunning) {
                 const TraceStatus status = TraceStatus(ending);
+                // The closest hit so far, also for a ray cut short (overflow, bad index):
+                // what traverse.h returns (hit_tri is always a checked TRIS index).
                 Hit h = make_miss();
-                if (status == TraceStatus::kOk && l.hit_tri != kNoTriangle)
-                    h = lane_hit(l, load_triangle(p.tris + l.hit_tri));
+                if (l.hit_tri != kNoTriangle) h = lane_hit(l, load_triangle(p.tris + l.hit_tri));
                 store_hit(p.hits + ray_id, h);
                 if (p.status) p.status[ray_id] = status;
                 if (status == TraceStatus::kStackOverflow) count_rare(&p.work->overflows);
