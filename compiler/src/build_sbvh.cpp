@@ -202,29 +202,29 @@ struct Split {
 /// Full SAH sweep over references sorted by centroid along each axis. Ties in
 /// cost go to the position nearest the middle, which makes the split of
 /// identical references a median split (no degenerate 1 : n-1 chains).
-Split sweep_object_split(const RefList& refs, RefList& best_sorted) {
-    const size_t n = refs.size();
+/// `at(a, i)`: the i-th of the n references in RefLess{a} order. One home for
+/// both callers: sweep_object_split (sorts per node) and the sorted small
+/// subtrees (SmallSet, sorted once).
+template <class At>
+Split sweep_sorted(size_t n, At&& at) {
     Split best;
     // Scratch reused across nodes (nothing in here waits on TBB, so no other
     // task can run on this thread while it is in use).
-    static thread_local RefList sorted;
     static thread_local std::vector<double> right_area;
     static thread_local std::vector<Aabb> right_box;
-    sorted.assign(refs.begin(), refs.end());
     right_area.resize(n);
     right_box.resize(n);
     for (int a = 0; a < 3; ++a) {
-        std::sort(sorted.begin(), sorted.end(), RefLess{a});
         Aabb acc;
         for (size_t i = n; i-- > 1;) {  // right_box[i] = union of sorted[i..n)
-            merge(acc, sorted[i].box);
+            merge(acc, at(a, i).box);
             right_box[i] = acc;
             right_area[i] = acc.half_area();
         }
         Aabb left;
         const double half = double(n) / 2.0;
         for (size_t k = 1; k < n; ++k) {  // left = sorted[0..k)
-            merge(left, sorted[k - 1].box);
+            merge(left, at(a, k - 1).box);
             const double cost = left.half_area() * double(k) + right_area[k] * double(n - k);
             const bool better = cost < best.cost ||
                 (cost == best.cost && best.axis == a &&
@@ -240,10 +240,21 @@ Split sweep_object_split(const RefList& refs, RefList& best_sorted) {
                 best.nr = n - k;
             }
         }
-        // Keep the order of the best axis for the partition (RefLess is a
-        // strict total order: the same array a fresh sort would give).
-        if (best.axis == a) best_sorted.assign(sorted.begin(), sorted.end());
     }
+    return best;
+}
+
+/// The sweep for a node of any size: sorts the references along each axis
+/// and leaves the best axis' order in best_sorted (RefLess is a strict total
+/// order: the same array a fresh sort would give).
+Split sweep_object_split(const RefList& refs, RefList& best_sorted) {
+    static thread_local RefList sorted[3];  // scratch, see sweep_sorted
+    for (int a = 0; a < 3; ++a) {
+        sorted[a].assign(refs.begin(), refs.end());
+        std::sort(sorted[a].begin(), sorted[a].end(), RefLess{a});
+    }
+    const Split best = sweep_sorted(refs.size(), [&](int a, size_t i) -> const Ref& { return sorted[a][i]; });
+    if (best.axis >= 0) best_sorted.assign(sorted[best.axis].begin(), sorted[best.axis].end());
     return best;
 }
 
@@ -326,10 +337,18 @@ Split binned_object_split(const RefList& refs, const Aabb& cbox) {
 // Spatial splits (Stich et al. 2009, section 4.3)
 // ---------------------------------------------------------------------------
 
+/// Spatial-split bins. Unions are min/max and counts integer sums, so the
+/// join order does not matter. reset() reuses the storage (serial passes keep
+/// one per thread: no allocation per node).
 struct SpatialBins {
     std::vector<Aabb> box;
     std::vector<uint32_t> enter, exit;
-    explicit SpatialBins(int n = 0) : box(n), enter(n, 0), exit(n, 0) {}
+    explicit SpatialBins(int n = 0) { reset(n); }
+    void reset(int n) {
+        box.assign(size_t(n), Aabb{});
+        enter.assign(size_t(n), 0);
+        exit.assign(size_t(n), 0);
+    }
     void join(const SpatialBins& o) {
         for (size_t b = 0; b < box.size(); ++b) {
             merge(box[b], o.box[b]);
@@ -338,6 +357,44 @@ struct SpatialBins {
         }
     }
 };
+
+/// spatial_lower_bound's bins: boxes by a reference's last and first bin.
+struct LowerBoundBins {
+    std::vector<Aabb> by_last, by_first;
+    std::vector<uint32_t> enter, exit;
+    explicit LowerBoundBins(int n = 0) { reset(n); }
+    void reset(int n) {
+        by_last.assign(size_t(n), Aabb{});
+        by_first.assign(size_t(n), Aabb{});
+        enter.assign(size_t(n), 0);
+        exit.assign(size_t(n), 0);
+    }
+    void join(const LowerBoundBins& o) {
+        for (size_t b = 0; b < by_last.size(); ++b) {
+            merge(by_last[b], o.by_last[b]);
+            merge(by_first[b], o.by_first[b]);
+            enter[b] += o.enter[b];
+            exit[b] += o.exit[b];
+        }
+    }
+};
+
+/// Bins `n` references: fill(begin, end, bins) serially into this thread's
+/// scratch below kParallelBinRefs, else as a TBB reduction (exact either way).
+template <class Bins, class Fill>
+const Bins& bin_references(size_t n, int nbins, Fill&& fill, Bins& result) {
+    if (n < kParallelBinRefs) {
+        static thread_local Bins scratch;  // no task switch while in use: fill never waits on TBB
+        scratch.reset(nbins);
+        fill(size_t(0), n, scratch);
+        return scratch;
+    }
+    result = tbb::parallel_reduce(
+        tbb::blocked_range<size_t>(0, n, 4096), Bins(nbins),
+        [&](const tbb::blocked_range<size_t>& r, Bins bins) { fill(r.begin(), r.end(), bins); return bins; },
+        [](Bins x, const Bins& y) { x.join(y); return x; });
+    return result;
+}
 
 /// Bin planes along one axis: p[0] = lo, p[B] = hi, evenly spaced in
 /// between (double arithmetic rounded to nearest; made monotone), and the
@@ -431,52 +488,61 @@ private:
         if (n > kSweepMaxRefs) object = binned_object_split(refs, bounds.centroids);
         if (object.kind == Split::kNone) object = sweep_object_split(refs, sorted);
 
-        // 2. Spatial split, only where the object split's children overlap
-        //    by more than alpha * A(root) (Stich et al. 2009, section 4.5) and
-        //    the subtree still has reference budget.
-        RefList& left = kids.left;
-        RefList& right = kids.right;
-        bool done = false;
+        // 2. Spatial split, else the object split.
+        if (!try_spatial(object, bounds.box, budget, depth, chops, [&]() -> const RefList& { return refs; }, kids)) {
+            object_partition(refs, sorted, object, kids.left, kids.right);
+            object_splits_.fetch_add(1, std::memory_order_relaxed);
+        }
+        double wl = 0.0, wr = 0.0;
+        for (const Ref& r : kids.left) wl += r.box.half_area();
+        for (const Ref& r : kids.right) wr += r.box.half_area();
+        share_budget(n, kids.left.size(), kids.right.size(), budget, chops, wl, wr, kids);
+        RefList().swap(refs);  // free the parent's list before recursing
+        return true;
+    }
+
+    /// Spatial split (Stich et al. 2009, section 4.5), only where the object
+    /// split's children overlap by more than alpha * A(root) and the subtree
+    /// still has reference budget. On success the references are in kids.left
+    /// and kids.right. `refs()` gives the node's references in list order
+    /// (spatial_partition's unsplitting depends on it); it is called only when
+    /// the overlap test passes.
+    template <class GetRefs>
+    bool try_spatial(const Split& object, const Aabb& box, uint64_t budget, int depth, int chops, GetRefs&& refs,
+                     Children& kids) {
         // Bitwise equal child boxes: the references coincide (duplicated
         // triangles); chopping them never separates anything.
         const bool coincident = std::memcmp(&object.left, &object.right, sizeof(Aabb)) == 0;
-        if (budget > 0 && depth < kMaxSpatialDepth && root_area_ > 0.0 && !coincident) {
-            const double overlap = intersect(object.left, object.right).half_area();
-            if (overlap > double(config_.split_alpha) * root_area_) {
-                const Split spatial = spatial_split(refs, bounds.box, object.cost);
-                if (spatial.cost < object.cost &&
-                    spatial_partition(refs, spatial, object.cost, budget,
-                                      chops < kMaxNonShrinkingSpatial, left, right)) {
-                    done = true;
-                    spatial_splits_.fetch_add(1, std::memory_order_relaxed);
-                }
-            }
-        }
-        if (!done) {
-            object_partition(refs, sorted, object, left, right);
-            object_splits_.fetch_add(1, std::memory_order_relaxed);
-        }
+        if (budget == 0 || depth >= kMaxSpatialDepth || !(root_area_ > 0.0) || coincident) return false;
+        const double overlap = intersect(object.left, object.right).half_area();
+        if (!(overlap > double(config_.split_alpha) * root_area_)) return false;
+        const RefList& list = refs();
+        const Split spatial = spatial_split(list, box, object.cost);
+        if (!(spatial.cost < object.cost) ||
+            !spatial_partition(list, spatial, object.cost, budget, chops < kMaxNonShrinkingSpatial,
+                               kids.left, kids.right))
+            return false;
+        spatial_splits_.fetch_add(1, std::memory_order_relaxed);
+        return true;
+    }
 
-        // Budget: duplicates made here are paid for; the rest is shared in
-        // proportion to the sum of the children's reference box areas:
-        // spatial splits pay off where references are large for their node
-        // (floors, walls), not where a dense mesh has many small triangles.
-        // Measured at growth 0.2 against sharing by reference count (binary
-        // SAH): fg_cg57 29.88 -> 29.07, torcs 11.85 -> 11.83, iceland
-        // 27.63 -> 27.47, sponza 62.35 -> 62.59 (unlimited: 28.45, 11.61,
-        // 27.24, 61.32). Deterministic: sums in list order, one rounding.
-        const uint64_t both = left.size() + right.size();
+    /// Budget: duplicates made here are paid for; the rest is shared in
+    /// proportion to the sum of the children's reference box areas (wl, wr:
+    /// summed in each child's list order): spatial splits pay off where
+    /// references are large for their node (floors, walls), not where a dense
+    /// mesh has many small triangles. Measured at growth 0.2 against sharing
+    /// by reference count (binary SAH): fg_cg57 29.88 -> 29.07, torcs 11.85 ->
+    /// 11.83, iceland 27.63 -> 27.47, sponza 62.35 -> 62.59 (unlimited: 28.45,
+    /// 11.61, 27.24, 61.32). Deterministic: sums in list order, one rounding.
+    static void share_budget(uint64_t n, uint64_t nl, uint64_t nr, uint64_t budget, int chops, double wl, double wr,
+                             Children& kids) {
+        const uint64_t both = nl + nr;
         const uint64_t dup = both - n;
         const uint64_t rest = budget - dup;  // spatial_partition ensured dup <= budget
-        double wl = 0.0, wr = 0.0;
-        for (const Ref& r : left) wl += r.box.half_area();
-        for (const Ref& r : right) wr += r.box.half_area();
-        const double share = wl + wr > 0.0 ? wl / (wl + wr) : double(left.size()) / double(both);
+        const double share = wl + wr > 0.0 ? wl / (wl + wr) : double(nl) / double(both);
         kids.budget_left = std::min<uint64_t>(rest, uint64_t(std::floor(double(rest) * share)));
         kids.budget_right = rest - kids.budget_left;
-        kids.chops = chops + ((left.size() == n || right.size() == n) ? 1 : 0);
-        RefList().swap(refs);  // free the parent's list before recursing
-        return true;
+        kids.chops = chops + ((nl == n || nr == n) ? 1 : 0);
     }
 
     /// Top of the tree: nodes of at least kTaskRefs references; their two
@@ -512,6 +578,7 @@ private:
     /// A subtree built by one task straight into `out`, in canonical
     /// depth-first order (left subtree first); returns the node's index.
     uint32_t build_block(Block& out, RefList& refs, uint64_t budget, int depth, int chops) {
+        if (refs.size() <= kSweepMaxRefs) return build_small_root(out, refs, budget, depth, chops);
         const uint32_t index = uint32_t(out.size());
         out.emplace_back();
         const uint32_t prim = refs.size() == 1 ? refs[0].tri : kInvalidIndex;
@@ -525,6 +592,100 @@ private:
         }
         const uint32_t l = build_block(out, kids.left, kids.budget_left, depth + 1, kids.chops);
         const uint32_t r = build_block(out, kids.right, kids.budget_right, depth + 1, kids.chops);
+        out[index].child[0] = l;
+        out[index].child[1] = r;
+        return index;
+    }
+
+    /// Subtrees of at most kSweepMaxRefs references, where every node takes
+    /// the full sweep: the references are sorted along each axis once, at the
+    /// small subtree's root, and each object split stable-partitions the three
+    /// orders. That gives exactly the orders a sort of each child would
+    /// (RefLess is a strict total order), so the tree is the one per-node
+    /// sorting builds, for a fraction of the sorting (dragon: 902k sweep nodes
+    /// in 52k small subtrees). A spatial split makes new references: each of
+    /// its children is the root of a new small subtree.
+    struct SmallSet {
+        const Ref* refs;        ///< the small subtree's references
+        uint8_t* order[3];      ///< this node's references (indices into refs) in RefLess{axis} order
+        const uint8_t* list;    ///< this node's references in list order (the order split_node would see)
+        size_t n;
+    };
+    static_assert(kSweepMaxRefs <= 256, "SmallSet indices are 8-bit");
+
+    uint32_t build_small_root(Block& out, RefList& refs, uint64_t budget, int depth, int chops) {
+        const size_t n = refs.size();
+        Ref local[kSweepMaxRefs];
+        std::copy(refs.begin(), refs.end(), local);
+        RefList().swap(refs);  // free the parent's list before recursing
+        uint8_t order[4][kSweepMaxRefs];
+        for (size_t i = 0; i < n; ++i) order[3][i] = uint8_t(i);  // list order: as handed down
+        for (int a = 0; a < 3; ++a) {
+            std::copy(order[3], order[3] + n, order[a]);
+            std::sort(order[a], order[a] + n, [&](uint8_t x, uint8_t y) { return RefLess{a}(local[x], local[y]); });
+        }
+        return build_small(out, SmallSet{local, {order[0], order[1], order[2]}, order[3], n}, budget, depth, chops);
+    }
+
+    /// build_block for a SmallSet: the same decisions as split_node, in the
+    /// same order, on the presorted references.
+    uint32_t build_small(Block& out, const SmallSet& s, uint64_t budget, int depth, int chops) {
+        const uint32_t index = uint32_t(out.size());
+        out.emplace_back();
+        const size_t n = s.n;
+        Aabb box;
+        for (size_t i = 0; i < n; ++i) merge(box, s.refs[s.order[0][i]].box);
+        out[index].box = box;
+        if (n == 1) {
+            out[index].prim = s.refs[s.order[0][0]].tri;
+            return index;
+        }
+        if (depth == 0) root_area_ = box.half_area();
+        const Split object = sweep_sorted(n, [&](int a, size_t i) -> const Ref& { return s.refs[s.order[a][i]]; });
+        Children kids;
+        RefList list;
+        const bool spatial = try_spatial(object, box, budget, depth, chops, [&]() -> const RefList& {
+            list.resize(n);
+            for (size_t i = 0; i < n; ++i) list[i] = s.refs[s.list[i]];
+            return list;
+        }, kids);
+        double wl = 0.0, wr = 0.0;
+        if (spatial) {
+            RefList().swap(list);
+            for (const Ref& r : kids.left) wl += r.box.half_area();
+            for (const Ref& r : kids.right) wr += r.box.half_area();
+            share_budget(n, kids.left.size(), kids.right.size(), budget, chops, wl, wr, kids);
+            const uint32_t l = build_block(out, kids.left, kids.budget_left, depth + 1, kids.chops);
+            const uint32_t r = build_block(out, kids.right, kids.budget_right, depth + 1, kids.chops);
+            out[index].child[0] = l;
+            out[index].child[1] = r;
+            return index;
+        }
+        object_splits_.fetch_add(1, std::memory_order_relaxed);
+        // Object split: the first k along the best axis go left (the old
+        // partition's `left`, in the same order, hence the same sums).
+        const int best = object.axis;
+        const size_t k = object.index;
+        bool goes_left[kSweepMaxRefs];
+        for (size_t i = 0; i < n; ++i) goes_left[s.order[best][i]] = i < k;
+        for (size_t i = 0; i < k; ++i) wl += s.refs[s.order[best][i]].box.half_area();
+        for (size_t i = k; i < n; ++i) wr += s.refs[s.order[best][i]].box.half_area();
+        for (int a = 0; a < 3; ++a) {
+            if (a == best) continue;
+            uint8_t right[kSweepMaxRefs];
+            size_t nl = 0, nr = 0;
+            for (size_t i = 0; i < n; ++i) {
+                const uint8_t r = s.order[a][i];
+                if (goes_left[r]) s.order[a][nl++] = r;  // nl <= i: never overwrites an unread entry
+                else right[nr++] = r;
+            }
+            std::copy(right, right + nr, s.order[a] + nl);
+        }
+        share_budget(n, k, n - k, budget, chops, wl, wr, kids);
+        const SmallSet ls{s.refs, {s.order[0], s.order[1], s.order[2]}, s.order[best], k};
+        const SmallSet rs{s.refs, {s.order[0] + k, s.order[1] + k, s.order[2] + k}, s.order[best] + k, n - k};
+        const uint32_t l = build_small(out, ls, kids.budget_left, depth + 1, kids.chops);
+        const uint32_t r = build_small(out, rs, kids.budget_right, depth + 1, kids.chops);
         out[index].child[0] = l;
         out[index].child[1] = r;
         return index;
@@ -583,16 +744,10 @@ private:
                 const int nbb = full ? nb : std::min(nb, kSpatialGateBins);
                 if (!full && nbb == nb) continue;  // few bins anyway: no pre-check
                 const BinPlanes planes = bin_planes(box.lo[a], box.hi[a], nbb);
-                auto body = [&](const tbb::blocked_range<size_t>& r, SpatialBins bins) {
-                    for (size_t i = r.begin(); i != r.end(); ++i) {
-                        bin_reference(refs[i], a, planes, bins);
-                    }
-                    return bins;
-                };
-                const SpatialBins bins = n < kParallelBinRefs
-                    ? body(tbb::blocked_range<size_t>(0, n), SpatialBins(nbb))
-                    : tbb::parallel_reduce(tbb::blocked_range<size_t>(0, n, 4096), SpatialBins(nbb), body,
-                                           [](SpatialBins x, const SpatialBins& y) { x.join(y); return x; });
+                SpatialBins storage;
+                const SpatialBins& bins = bin_references(n, nbb, [&](size_t begin, size_t end, SpatialBins& out) {
+                    for (size_t i = begin; i != end; ++i) bin_reference(refs[i], a, planes, out);
+                }, storage);
                 double gate_cost = std::numeric_limits<double>::infinity();
                 // Entering counts on the left, exiting counts on the right of each plane.
                 sweep_bins(nbb, bins.box.data(), bins.enter.data(), bins.box.data(), bins.exit.data(),
@@ -618,25 +773,22 @@ private:
     /// its count to both sides and, as a bound, nothing to either box.
     double spatial_lower_bound(const RefList& refs, int a, const BinPlanes& planes) const {
         const int nb = planes.bins();
-        // Scratch reused across nodes (nothing in here waits on TBB).
-        static thread_local std::vector<Aabb> by_last, by_first;
-        static thread_local std::vector<uint32_t> enter, exit;
-        by_last.assign(size_t(nb), Aabb{});
-        by_first.assign(size_t(nb), Aabb{});
-        enter.assign(size_t(nb), 0);
-        exit.assign(size_t(nb), 0);
-        for (const Ref& r : refs) {
-            const int b0 = bin_of_lo(planes, r.box.lo[a]);
-            const int b1 = std::max(b0, bin_of_hi(planes, r.box.hi[a]));
-            merge(by_last[b1], r.box);
-            merge(by_first[b0], r.box);
-            ++enter[b0];
-            ++exit[b1];
-        }
+        LowerBoundBins storage;
+        const LowerBoundBins& bins = bin_references(refs.size(), nb, [&](size_t begin, size_t end, LowerBoundBins& out) {
+            for (size_t i = begin; i != end; ++i) {
+                const Aabb& box = refs[i].box;
+                const int b0 = bin_of_lo(planes, box.lo[a]);
+                const int b1 = std::max(b0, bin_of_hi(planes, box.hi[a]));
+                merge(out.by_last[size_t(b1)], box);
+                merge(out.by_first[size_t(b0)], box);
+                ++out.enter[size_t(b0)];
+                ++out.exit[size_t(b1)];
+            }
+        }, storage);  // large nodes in parallel, like the other binning passes
         // Left of plane b: boxes of references whose last bin is < b (wholly
         // left), counts of those whose first bin is < b; mirrored on the right.
         double best = std::numeric_limits<double>::infinity();
-        sweep_bins(nb, by_last.data(), enter.data(), by_first.data(), exit.data(),
+        sweep_bins(nb, bins.by_last.data(), bins.enter.data(), bins.by_first.data(), bins.exit.data(),
                    [&](int, const Aabb& left, uint64_t nl, const Aabb& right, uint64_t nr) {
                        best = std::min(best, left.half_area() * double(nl) + right.half_area() * double(nr));
                    });
