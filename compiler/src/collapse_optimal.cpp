@@ -20,8 +20,12 @@
 // reverse sweep finishes a subtree right before its parent needs it, so the
 // pending costs form a stack of depth O(tree depth). Any other valid order
 // falls back to one cost array per node (56 more bytes per node).
+#include <algorithm>
+#include <atomic>
 #include <limits>
 #include <vector>
+
+#include <tbb/parallel_for.h>
 
 #include "cwbvh/compiler/collapse.h"
 #include "cwbvh/compiler/progress.h"
@@ -48,6 +52,7 @@ struct Costs {
 class CostStack {
 public:
     void put(uint32_t node, const Costs& c) { stack_.push_back({node, c}); }
+    bool empty() const { return stack_.empty(); }
     bool take(uint32_t node, Costs& out) {
         if (stack_.empty() || stack_.back().node != node) return false;
         out = stack_.back().costs;
@@ -77,72 +82,158 @@ private:
     std::vector<Costs> costs_;
 };
 
-/// The DP sweep with a given cost store; false if the store cannot serve the
-/// tree's order (CostStack on a tree that is not in preorder).
-/// `progress` advances by one per node swept, in batches; a sweep that fails
-/// takes its count back (the fallback sweeps again).
+/// Cost store for the top of a parallel sweep: the few nodes above the task
+/// subtrees, and the task subtrees' roots (sorted by node, looked up by
+/// binary search; a handful of entries per task).
+class CostMap {
+public:
+    void put(uint32_t node, const Costs& c) {
+        auto it = std::lower_bound(entries_.begin(), entries_.end(), node,
+                                   [](const Entry& e, uint32_t k) { return e.node < k; });
+        entries_.insert(it, Entry{node, c});
+    }
+    bool take(uint32_t node, Costs& out) const {
+        auto it = std::lower_bound(entries_.begin(), entries_.end(), node,
+                                   [](const Entry& e, uint32_t k) { return e.node < k; });
+        if (it == entries_.end() || it->node != node) return false;
+        out = it->costs;
+        return true;
+    }
+
+private:
+    struct Entry {
+        uint32_t node;
+        Costs costs;
+    };
+    std::vector<Entry> entries_;
+};
+
+/// One node of the DP: reads its children's costs from `store` (false if the
+/// store cannot serve them) and puts its own. Depends only on the node and
+/// its children's costs: any schedule gives the same decisions.
 template <class Store>
-bool run_dp(const BinaryBvh& binary, const CollapseConfig& config, const std::vector<uint32_t>& ref_count,
-            Store& store, std::vector<Decision>& dec, Progress* progress) {
-    const size_t n = binary.nodes.size();
-    ProgressBatch swept(progress);
+bool dp_node(const BinaryBvh& binary, const CollapseConfig& config, const std::vector<uint32_t>& ref_count,
+             size_t idx, Store& store, std::vector<Decision>& dec) {
     const double c_node = config.cost_node, c_prim = config.cost_prim;
     const double inf = std::numeric_limits<double>::infinity();
-    // Children have larger indices than parents (checked): a reverse sweep is
-    // an iterative post-order, with no recursion depth limit.
-    for (size_t idx = n; idx-- > 0;) {
-        const BinaryNode& b = binary.nodes[idx];
-        Decision& d = dec[idx];
-        swept.add(1);
-        Costs out;
-        const double area = b.box.half_area();
-        const double leaf_cost = ref_count[idx] <= uint32_t(config.max_leaf)
-                                     ? c_prim * distinct_leaf_triangles(binary, uint32_t(idx)) * area
-                                     : inf;
-        if (b.is_leaf()) {
-            for (int i = 0; i < kMaxRoots; ++i) {
-                out.c[i] = leaf_cost;
-                d.split[i] = 0;
-            }
-            d.as_leaf = true;
-            d.internal_split = 0;
-            store.put(uint32_t(idx), out);
-            continue;
+    const BinaryNode& b = binary.nodes[idx];
+    Decision& d = dec[idx];
+    Costs out;
+    const double area = b.box.half_area();
+    const double leaf_cost = ref_count[idx] <= uint32_t(config.max_leaf)
+                                 ? c_prim * distinct_leaf_triangles(binary, uint32_t(idx)) * area
+                                 : inf;
+    if (b.is_leaf()) {
+        for (int i = 0; i < kMaxRoots; ++i) {
+            out.c[i] = leaf_cost;
+            d.split[i] = 0;
         }
-        Costs l, r;  // in a reverse preorder sweep the left subtree finished last
-        if (!store.take(b.child[0], l) || !store.take(b.child[1], r)) {
+        d.as_leaf = true;
+        d.internal_split = 0;
+        store.put(uint32_t(idx), out);
+        return true;
+    }
+    Costs l, r;  // in a reverse preorder sweep the left subtree finished last
+    if (!store.take(b.child[0], l) || !store.take(b.child[1], r)) return false;
+    double best_children = inf;
+    int best_k = 1;
+    for (int k = 1; k <= kMaxRoots; ++k) {  // left gets k roots, right 8 - k (both >= 1)
+        const double c = l.c[k - 1] + r.c[kWidth - k - 1];
+        if (c < best_children) {
+            best_children = c;
+            best_k = k;
+        }
+    }
+    const double internal_cost = c_node * area + best_children;
+    d.internal_split = uint8_t(best_k);
+    // Ties go to the leaf: same SAH, one node fewer.
+    d.as_leaf = leaf_cost <= internal_cost;
+    out.c[0] = d.as_leaf ? leaf_cost : internal_cost;
+    d.split[0] = 0;
+    for (int i = 2; i <= kMaxRoots; ++i) {
+        double best = out.c[0];
+        int split = 0;
+        for (int k = 1; k < i; ++k) {
+            const double c = l.c[k - 1] + r.c[i - k - 1];
+            if (c < best) {
+                best = c;
+                split = k;
+            }
+        }
+        out.c[i - 1] = best;
+        d.split[i - 1] = uint8_t(split);
+    }
+    store.put(uint32_t(idx), out);
+    return true;
+}
+
+/// The DP sweep over nodes [begin, end) in reverse order with a given cost
+/// store; false if the store cannot serve the order (CostStack on a range
+/// that is not in preorder). Children have larger indices than parents
+/// (checked): a reverse sweep is an iterative post-order, with no recursion
+/// depth limit. `progress` advances by one per node swept, in batches; a
+/// sweep that fails takes its count back (the fallback sweeps again).
+template <class Store>
+bool run_dp(const BinaryBvh& binary, const CollapseConfig& config, const std::vector<uint32_t>& ref_count,
+            size_t begin, size_t end, Store& store, std::vector<Decision>& dec, Progress* progress) {
+    ProgressBatch swept(progress);
+    for (size_t idx = end; idx-- > begin;) {
+        swept.add(1);
+        if (!dp_node(binary, config, ref_count, idx, store, dec)) {
             swept.retract();
             return false;
         }
-        double best_children = inf;
-        int best_k = 1;
-        for (int k = 1; k <= kMaxRoots; ++k) {  // left gets k roots, right 8 - k (both >= 1)
-            const double c = l.c[k - 1] + r.c[kWidth - k - 1];
-            if (c < best_children) {
-                best_children = c;
-                best_k = k;
-            }
+    }
+    return true;
+}
+
+/// Subtrees of at most this many nodes are swept by one task each.
+constexpr size_t kTaskNodes = 1 << 16;
+
+/// The DP of a tree in depth-first preorder (what both builders write), in
+/// parallel: a node's subtree is the index range [node, end) (the root's end
+/// is the node count; the left child's range ends where the right child
+/// starts), so the tree is cut top-down into task subtrees of at most
+/// kTaskNodes nodes, swept in parallel with a CostStack each, and the few
+/// nodes above them are swept last. False (nothing decided that matters) if
+/// the tree is not in preorder: the caller falls back to one CostArray sweep.
+bool run_dp_parallel(const BinaryBvh& binary, const CollapseConfig& config, const std::vector<uint32_t>& ref_count,
+                     std::vector<Decision>& dec, Progress* progress) {
+    struct Range {
+        uint32_t begin, end;
+    };
+    std::vector<uint32_t> top;    // nodes above the tasks, in preorder
+    std::vector<Range> tasks;
+    std::vector<Range> pending{{0, uint32_t(binary.nodes.size())}};
+    while (!pending.empty()) {
+        const Range r = pending.back();
+        pending.pop_back();
+        const BinaryNode& b = binary.nodes[r.begin];
+        if (b.is_leaf() || r.end - r.begin <= kTaskNodes) {
+            tasks.push_back(r);
+            continue;
         }
-        const double internal_cost = c_node * area + best_children;
-        d.internal_split = uint8_t(best_k);
-        // Ties go to the leaf: same SAH, one node fewer.
-        d.as_leaf = leaf_cost <= internal_cost;
-        out.c[0] = d.as_leaf ? leaf_cost : internal_cost;
-        d.split[0] = 0;
-        for (int i = 2; i <= kMaxRoots; ++i) {
-            double best = out.c[0];
-            int split = 0;
-            for (int k = 1; k < i; ++k) {
-                const double c = l.c[k - 1] + r.c[i - k - 1];
-                if (c < best) {
-                    best = c;
-                    split = k;
-                }
-            }
-            out.c[i - 1] = best;
-            d.split[i - 1] = uint8_t(split);
-        }
-        store.put(uint32_t(idx), out);
+        const uint32_t c0 = b.child[0], c1 = b.child[1];
+        if (c0 != r.begin + 1 || !(c1 > c0 && c1 < r.end)) return false;  // not preorder
+        top.push_back(r.begin);
+        pending.push_back({c1, r.end});
+        pending.push_back({c0, c1});
+    }
+    std::vector<Costs> roots(tasks.size());
+    std::atomic<bool> ok{true};
+    tbb::parallel_for(size_t(0), tasks.size(), [&](size_t t) {
+        CostStack stack;
+        if (!run_dp(binary, config, ref_count, tasks[t].begin, tasks[t].end, stack, dec, progress) ||
+            !stack.take(tasks[t].begin, roots[t]) || !stack.empty())
+            ok.store(false, std::memory_order_relaxed);
+    });
+    if (!ok.load()) return false;
+    CostMap map;
+    for (size_t t = 0; t < tasks.size(); ++t) map.put(tasks[t].begin, roots[t]);
+    ProgressBatch swept(progress);
+    for (size_t i = top.size(); i-- > 0;) {  // reverse preorder: children before parents
+        swept.add(1);
+        if (!dp_node(binary, config, ref_count, top[i], map, dec)) return false;
     }
     return true;
 }
@@ -176,10 +267,11 @@ bool collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
                       const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error,
                       Progress* progress) {
     std::vector<Decision> dp(binary.nodes.size());
-    CostStack stack;
-    if (!run_dp(binary, config, ref_count, stack, dp, progress)) {
+    if (!run_dp_parallel(binary, config, ref_count, dp, progress)) {
+        // Not in preorder (or a subtree was not): one sweep over any valid order.
+        if (progress) progress->reset(binary.nodes.size());
         CostArray array(binary.nodes.size());
-        run_dp(binary, config, ref_count, array, dp, progress);
+        run_dp(binary, config, ref_count, 0, binary.nodes.size(), array, dp, progress);
     }
 
     // Backtracking: create wide nodes top-down. Each wide node gets the roots
