@@ -5,7 +5,7 @@ set -euo pipefail
 PACKAGES=(
   build-essential cmake ninja-build pkg-config
   libembree-dev libopenmesh-dev libdraco-dev libtinygltf-dev nlohmann-json3-dev libglm-dev
-  libtbb-dev libxxhash-dev libgtest-dev libgmock-dev libbenchmark-dev
+  libtbb-dev libxxhash-dev libpng-dev libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev
   glmark2-data assimp-testmodels
   python3 python3-matplotlib

@@ -14,7 +14,7 @@
 
 #include "cwbvh/checksum.h"
 #include "cwbvh/loader.h"
-#include "cwbvh/synthetic.h"
+#include "cwbvh/compiler/synthetic.h"
 
 namespace {
 

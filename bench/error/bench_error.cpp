@@ -10,7 +10,7 @@
 // views/catalog.txt) or default_camera, and the diffuse rays of bounce B
 // (ray_gen.h), generated once from REF; every configuration traces the same rays.
 //
-// Oracle: tests/traverse/oracle.h's exact predicate (expansion arithmetic) and
+// Oracle: oracle/include/cwbvh/oracle/oracle.h's exact predicate (expansion arithmetic) and
 // its closest-hit rule (ties and range ends within the float-precision
 // tolerance `tol` of oracle_trace). Brute force is O(rays x triangles), so the
 // candidates come from our own median-split BVH over the distinct triangles of
@@ -38,7 +38,7 @@
 #include "cwbvh/cpu_trace.h"
 #include "cwbvh/loader.h"
 #include "cwbvh/ray_gen.h"
-#include "oracle.h"
+#include "cwbvh/oracle/oracle.h"
 
 namespace {
 [[noreturn]] void die(const std::string& m) {

@@ -1,5 +1,6 @@
-// The compile pipeline: each phase is one call into its own module; this file
-// only sequences them, times them and collects statistics.
+// The compile pipeline of cwbvhc: import (front end), binary builder (SBVH or
+// Embree), then the core (core.h) from the binary tree to the written file; this
+// file only sequences them, times them and collects statistics.
 #include <malloc.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -10,15 +11,13 @@
 #include <cstdio>
 #include <string>
 
-#include "cwbvh/compiler/auction.h"
 #include "cwbvh/compiler/build.h"
-#include "cwbvh/compiler/collapse.h"
 #include "cwbvh/compiler/compile.h"
+#include "cwbvh/compiler/core.h"
 #include "cwbvh/compiler/emit.h"
 #include "cwbvh/compiler/import.h"
 #include "cwbvh/compiler/model.h"
 #include "cwbvh/compiler/progress.h"
-#include "cwbvh/compiler/sah_report.h"
 
 namespace cwbvh::compiler {
 namespace {
@@ -110,43 +109,29 @@ bool compile_phases(const CompileOptions& options, CompileStats& stats, std::str
     stats.spatial_splits = binary.spatial_splits;
     stats.binary_nodes = binary.nodes.size();
 
-    CollapseConfig collapse_config;
-    collapse_config.kind = options.collapse;
-    collapse_config.cost_prim = options.collapse_cost_prim;
-    stats.sah_binary = report_sah_binary(binary);
-
-    WideBvh wide;
-    if (!timer.run("collapse", binary.nodes.size(),
-                   [&] { return collapse_wide(binary, collapse_config, wide, error, progress); }))
-        return false;
-    if (!timer.run("slots", wide.nodes.size(), [&] {
-            assign_slots(wide, progress);
-            return true;
-        }))
-        return false;
-
-    // The binary tree is only needed again for the optional BV2L section;
-    // without it, it is the largest structure alive (36 bytes per node).
-    if (!options.keep_sbvh) BinaryBvh{}.nodes.swap(binary.nodes);
-
-    EmitInput emit;
-    emit.options = &options;
-    emit.scene = &scene;
-    emit.binary = options.keep_sbvh ? &binary : nullptr;
-    emit.references = stats.references;
-    emit.binary_nodes = stats.binary_nodes;
-    emit.wide = &wide;
-    emit.collapse = &collapse_config;
-    emit.sbvh = &sbvh_config;
-    emit.sah_binary = stats.sah_binary;
+    // Everything from the binary tree on is the core's (core.h).
+    CoreOptions core;
+    core.sbvh = sbvh_config;
+    core.collapse.kind = options.collapse;
+    core.collapse.cost_prim = options.collapse_cost_prim;
+    core.emit.builder = options.builder;
+    core.emit.bvh2 = options.keep_sbvh ? Bvh2Section::kLeafRanges : Bvh2Section::kNone;
+    core.emit.keep_mesh = options.keep_mesh;
+    core.emit.verify = options.verify;
+    const PhaseRunner run = [&](const std::string& name, uint64_t units, const std::function<bool()>& body) {
+        return timer.run(name, units, body);
+    };
     EmitResult emitted;
-    if (!timer.run("encode", 0, [&] { return encode_scene(emit, emitted, error); })) return false;
+    if (!compile_binary(scene, binary, core, emitted, error, run, progress)) return false;
+    stats.sah_binary = emitted.build_info.sah_binary;
     stats.wide_nodes = emitted.wide_nodes;
     stats.wide_depth = emitted.wide_depth;
     stats.avg_children = emitted.avg_children;
     stats.max_leaf_triangles = emitted.max_leaf_triangles;
     stats.sah_wide = emitted.sah_wide;
-    if (!timer.run("write", 0, [&] { return write_scene(emit, emitted, stats.bytes, stats.file_bytes, error); }))
+    if (!timer.run("write", 0, [&] {
+            return write_scene(scene, emitted, options.output, stats.bytes, stats.file_bytes, error);
+        }))
         return false;
 
     stats.peak_rss_bytes = peak_rss_bytes();

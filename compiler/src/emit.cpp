@@ -1,17 +1,22 @@
-// encode_scene / write_scene: the bridge from the compiler's model to the
-// file format. Which sections are written, and with which flags:
+// encode_scene / scene_sections / write_scene: the bridge from the compiler's
+// model to the file format. Which sections are written (their order and flags
+// are format/'s add_scene_sections):
 //   NODE, TRIS, PMAP, BNDS  required (a renderer needs them)
 //   BILD, SRCN              optional, always written
 //   BV2L                    optional, --keep-sbvh (binary BVH with leaf ranges, format 1.1)
+//   BVH2                    optional, one record per leaf (format 1.0; synthetic and test scenes)
 //   VERT, INDX              optional, --keep-mesh
 #include "cwbvh/compiler/emit.h"
 
+#include <array>
 #include <cstring>
 #include <optional>
 #include <span>
 
+#include "cwbvh/compiler/build.h"
 #include "cwbvh/compiler/collapse.h"
 #include "cwbvh/compiler/sah_report.h"
+#include "cwbvh/sections.h"
 #include "cwbvh/source_map.h"
 #include "cwbvh/tree_depth.h"
 #include "cwbvh/writer.h"
@@ -19,11 +24,10 @@
 namespace cwbvh::compiler {
 namespace {
 
-SceneBounds scene_bounds(const Scene& scene) {
-    Aabb box;
-    for (const auto& tri : scene.indices)
-        for (uint32_t v : tri) box.grow(scene.vertices[v]);
+/// BNDS: the scene box; an empty scene writes zeros (spec 3.4).
+SceneBounds scene_bounds(const Aabb& box) {
     SceneBounds b{};
+    if (box.empty()) return b;
     for (int a = 0; a < 3; ++a) {
         b.lo[a] = box.lo[a];
         b.hi[a] = box.hi[a];
@@ -58,36 +62,45 @@ BuildInfo build_info(const EmitInput& in, const EmitResult& out) {
     return info;
 }
 
-const char* section_name(uint32_t type) {
-    switch (type) {
-        case kSectionNodes: return "NODE";
-        case kSectionTriangles: return "TRIS";
-        case kSectionSourceMap: return "PMAP";
-        case kSectionBounds: return "BNDS";
-        case kSectionBuildInfo: return "BILD";
-        case kSectionBvh2: return "BVH2";
-        case kSectionBvh2Leaves: return "BV2L";
-        case kSectionVertices: return "VERT";
-        case kSectionIndices: return "INDX";
-        case kSectionSourceNames: return "SRCN";
-        default: return "????";
-    }
-}
-
 }  // namespace
 
+Aabb scene_box(const Scene& scene) {
+    Aabb box;
+    for (const auto& tri : scene.indices)
+        for (uint32_t v : tri) box.grow(scene.vertices[v]);
+    return box;
+}
+
 bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error) {
-    if (!encode_cwbvh(*in.wide, *in.scene, out.tree, error, in.collapse->cost_node, in.collapse->cost_prim))
-        return false;
-    if (in.options->verify && !verify_encoded(out.tree, *in.wide, *in.scene, error)) {
-        error = "internal error: encoded tree failed verification: " + error;
-        return false;
+    const EmitOptions& options = *in.options;
+    const bool bvh2 = options.bvh2 != Bvh2Section::kNone;
+    out.bvh2_leaf_ranges = options.bvh2 == Bvh2Section::kLeafRanges;
+    out.keep_mesh = options.keep_mesh;
+    if (!in.wide) {
+        if (in.scene->triangle_count() != 0) {
+            error = "internal error: encode without a wide tree";
+            return false;
+        }
+        // The empty scene (spec 3.2, rule 1): a root without used slots. Its
+        // exponents are never decoded; 127 (scale 1) is as good as any.
+        CwbvhNode root{};
+        root.e[0] = root.e[1] = root.e[2] = 127;
+        out.tree = EncodedTree{};
+        out.tree.nodes.push_back(root);
+    } else {
+        if (!encode_cwbvh(*in.wide, *in.scene, out.tree, error, in.collapse->cost_node, in.collapse->cost_prim))
+            return false;
+        if (options.verify && !verify_encoded(out.tree, *in.wide, *in.scene, error)) {
+            error = "internal error: encoded tree failed verification: " + error;
+            return false;
+        }
+        if (bvh2 && !in.binary) {
+            error = "internal error: --keep-sbvh without the binary tree";
+            return false;
+        }
+        if (bvh2 && !encode_bvh2(*in.binary, *in.wide, out.tree, out.tree.bvh2, error, out.bvh2_leaf_ranges))
+            return false;
     }
-    if (in.options->keep_sbvh && !in.binary) {
-        error = "internal error: --keep-sbvh without the binary tree";
-        return false;
-    }
-    if (in.options->keep_sbvh && !encode_bvh2(*in.binary, *in.wide, out.tree, out.tree.bvh2, error)) return false;
 
     out.wide_depth = wide_tree_depth(out.tree.nodes);
     if (out.wide_depth > kMaxWideDepth) {
@@ -95,7 +108,7 @@ bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error) {
                 std::to_string(kMaxWideDepth) + " (the traversal stack's bound)";
         return false;
     }
-    if (in.options->keep_sbvh) {
+    if (bvh2 && !out.tree.bvh2.empty()) {
         out.bvh2_depth = bvh2_tree_depth(out.tree.bvh2);
         if (out.bvh2_depth > kMaxBvh2Depth) {
             error = "the binary SBVH is " + std::to_string(out.bvh2_depth) + " levels deep; the BV2L section allows " +
@@ -106,11 +119,9 @@ bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error) {
     out.wide_nodes = out.tree.nodes.size();
     out.avg_children = out.tree.avg_children;
     out.max_leaf_triangles = out.tree.max_leaf_triangles;
-    Aabb root_box;
-    for (const auto& tri : in.scene->indices)
-        for (uint32_t v : tri) root_box.grow(in.scene->vertices[v]);
+    const Aabb root_box = scene_box(*in.scene);
     out.sah_wide = report_sah_wide(out.tree.nodes, root_box);
-    out.bounds = scene_bounds(*in.scene);
+    out.bounds = scene_bounds(root_box);
     out.build_info = build_info(in, out);
     for (const auto& name : in.scene->input_names) {
         out.source_names.insert(out.source_names.end(), name.begin(), name.end());
@@ -119,7 +130,7 @@ bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error) {
     // PMAP: clean.cpp keeps stored triangles in source order within a
     // primitive, so a run breaks only at a dropped triangle or a new primitive/input.
     out.source_ranges = make_source_ranges(in.scene->sources);
-    if (in.options->verify) {
+    if (options.verify) {
         const std::vector<SourceRef>& sources = in.scene->sources;
         if (source_range_total(out.source_ranges) != sources.size()) {
             error = "internal error: PMAP ranges do not cover the stored triangles";
@@ -136,38 +147,51 @@ bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error) {
     return true;
 }
 
-bool write_scene(const EmitInput& in, const EmitResult& e, std::vector<std::pair<std::string, uint64_t>>& bytes,
-                 uint64_t& file_bytes, std::string& error) {
-    const Scene& scene = *in.scene;
-    Writer writer;
-    writer.add_array<CwbvhNode>(kSectionNodes, kSectionRequired, e.tree.nodes);
-    writer.add_array<TriangleRecord>(kSectionTriangles, kSectionRequired, e.tree.triangles);
-    writer.add_array<SourceRange>(kSectionSourceMap, kSectionRequired, e.source_ranges);
-    writer.add_array<SceneBounds>(kSectionBounds, kSectionRequired, std::span<const SceneBounds>(&e.bounds, 1));
-    writer.add_array<BuildInfo>(kSectionBuildInfo, 0, std::span<const BuildInfo>(&e.build_info, 1));
-    writer.add_array<uint8_t>(kSectionSourceNames, 0, e.source_names);
-    if (in.options->keep_sbvh) writer.add_array<Bvh2Node>(kSectionBvh2Leaves, 0, e.tree.bvh2);
-    if (in.options->keep_mesh) {
+SceneSections scene_sections(const Scene& scene, const EmitResult& e) {
+    SceneSections s;
+    s.nodes = e.tree.nodes;
+    s.triangles = e.tree.triangles;
+    s.source_ranges = e.source_ranges;
+    s.bounds = &e.bounds;
+    s.build_info = &e.build_info;
+    s.source_names = e.source_names;
+    s.bvh2 = e.tree.bvh2;
+    s.bvh2_leaf_ranges = e.bvh2_leaf_ranges;
+    if (e.keep_mesh) {
         static_assert(sizeof(Vec3) == 12 && sizeof(std::array<uint32_t, 3>) == 12);
-        writer.add_section(kSectionVertices, 0, 12, scene.vertices.size(),
-                           {reinterpret_cast<const uint8_t*>(scene.vertices.data()), scene.vertices.size() * 12});
-        writer.add_section(kSectionIndices, 0, 12, scene.indices.size(),
-                           {reinterpret_cast<const uint8_t*>(scene.indices.data()), scene.indices.size() * 12});
+        s.vertices = {reinterpret_cast<const float*>(scene.vertices.data()), scene.vertices.size() * 3};
+        s.indices = {reinterpret_cast<const uint32_t*>(scene.indices.data()), scene.indices.size() * 3};
     }
+    return s;
+}
 
+bool write_scene(const Scene& scene, const EmitResult& e, const std::string& path,
+                 std::vector<std::pair<std::string, uint64_t>>& bytes, uint64_t& file_bytes, std::string& error) {
+    Writer writer;
+    add_scene_sections(writer, scene_sections(scene, e));
     FileHeader header{};
     std::vector<SectionEntry> table;
     if (Result r = writer.layout(header, table); !r.ok()) {
-        error = in.options->output + ": " + r.describe();
+        error = path + ": " + r.describe();
         return false;
     }
-    if (Result r = writer.write_file(in.options->output); !r.ok()) {
-        error = in.options->output + ": " + r.describe();
+    if (Result r = writer.write_file(path); !r.ok()) {
+        error = path + ": " + r.describe();
         return false;
     }
     bytes.clear();
     for (const auto& s : table) bytes.emplace_back(section_name(s.type), s.size);
     file_bytes = header.file_size;
+    return true;
+}
+
+bool scene_bytes(const Scene& scene, const EmitResult& e, std::vector<uint8_t>& out, std::string& error) {
+    Writer writer;
+    add_scene_sections(writer, scene_sections(scene, e));
+    if (Result r = writer.to_bytes(out); !r.ok()) {
+        error = r.describe();
+        return false;
+    }
     return true;
 }
 

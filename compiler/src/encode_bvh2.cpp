@@ -9,6 +9,11 @@
 // the binary nodes above those subtrees, and the child that was m becomes a leaf
 // child: box = m's box (= the wide leaf's exact box), ~child = the first TRIS
 // record, leaf_count = the record count. No triangle is duplicated.
+//
+// BVH2 section (format 1.0, one record per leaf): the whole binary tree, every
+// binary leaf a leaf child holding the TRIS record of its reference
+// (leaf_count 0). Binary leaves of one triangle that the collapse merged into
+// one wide leaf share that record.
 #include <climits>
 
 #include "cwbvh/compiler/collapse.h"
@@ -70,7 +75,7 @@ void set_box(Bvh2Node& n, int c, const Aabb& b) {
 }  // namespace
 
 bool encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree& tree, std::vector<Bvh2Node>& out,
-                 std::string& error) {
+                 std::string& error, bool leaf_ranges) {
     out.clear();
     std::vector<uint32_t> ref_count;
     if (!detail::check_binary(binary, ref_count, error)) return false;
@@ -78,19 +83,23 @@ bool encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree
         error = "bvh2: the wide BVH was not collapsed from this binary BVH";
         return false;
     }
-    if (tree.triangles.size() > kMaxBvh2LeafTris) {
-        error = "bvh2: more than 2^29 triangle records (the limit of the BV2L section)";
+    if (leaf_ranges ? tree.triangles.size() > kMaxBvh2LeafTris : tree.triangles.size() > size_t(INT32_MAX)) {
+        error = leaf_ranges ? "bvh2: more than 2^29 triangle records (the limit of the BV2L section)"
+                            : "bvh2: more than 2^31 - 1 triangle records (the limit of the BVH2 section)";
         return false;
     }
     std::vector<Bvh2Leaf> leaves;
     std::vector<uint32_t> ref_leaf;
     if (!wide_leaves(wide, tree, leaves, ref_leaf, error)) return false;
 
-    // group[i]: the wide leaf every binary leaf under node i belongs to, or
-    // kInvalidIndex if they span several (or i is above the cut). Children have
-    // larger indices than their parent (check_binary), so one backward pass.
+    // group[i]: the BVH2 leaf binary node i becomes, or kInvalidIndex if i stays an
+    // internal BVH2 node (or lies below a leaf). BV2L: the wide leaf every binary
+    // leaf under i belongs to, if they all belong to one. BVH2: one leaf per binary
+    // leaf, holding that reference's record. Children have larger indices than
+    // their parent (check_binary), so one backward pass.
     const size_t n_binary = binary.nodes.size();
     std::vector<uint32_t> group(n_binary, kInvalidIndex);
+    if (!leaf_ranges) leaves.clear();
     for (size_t i = n_binary; i-- > 0;) {
         const BinaryNode& b = binary.nodes[i];
         if (b.is_leaf()) {
@@ -99,21 +108,28 @@ bool encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree
                 error = "bvh2: binary leaf " + std::to_string(i) + " is in no wide leaf";
                 return false;
             }
-            group[i] = ref_leaf[r];
-        } else if (group[b.child[0]] == group[b.child[1]]) {
+            if (leaf_ranges) {
+                group[i] = ref_leaf[r];
+            } else {
+                group[i] = uint32_t(leaves.size());
+                leaves.push_back({tree.ref_to_tri[r], 1});
+            }
+        } else if (leaf_ranges && group[b.child[0]] == group[b.child[1]]) {
             group[i] = group[b.child[0]];
         }
     }
+    // BVH2 (1.0) leaves hold one record and leave leaf_count 0 (spec 3.6).
+    auto leaf_count = [&](const Bvh2Leaf& leaf) { return leaf_ranges ? leaf.count : 0u; };
 
     if (group[0] != kInvalidIndex) {
-        // The whole tree is one wide leaf (a single reference): the kernels start at
+        // The whole tree is one leaf (a single reference): the kernels start at
         // an internal node, so the root holds that leaf in both children.
         Bvh2Leaf& leaf = leaves[group[0]];
         Bvh2Node n{};
         for (int c = 0; c < 2; ++c) {
             set_box(n, c, binary.nodes[0].box);
             n.child[c] = ~int32_t(leaf.first_tri);
-            n.leaf_count[c] = leaf.count;
+            n.leaf_count[c] = leaf_count(leaf);
         }
         out.push_back(n);
         leaf.cuts = 1;
@@ -145,13 +161,13 @@ bool encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree
                 Bvh2Leaf& leaf = leaves[group[ch]];
                 ++leaf.cuts;
                 n.child[c] = ~int32_t(leaf.first_tri);
-                n.leaf_count[c] = leaf.count;
+                n.leaf_count[c] = leaf_count(leaf);
             }
         }
     }
     for (size_t id = 0; id < leaves.size(); ++id) {
         if (leaves[id].cuts != 1) {
-            error = "bvh2: wide leaf " + std::to_string(id) + " is not one binary subtree";
+            error = "bvh2: leaf " + std::to_string(id) + " is not one binary subtree";
             return false;
         }
     }

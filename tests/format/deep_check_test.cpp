@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "cwbvh/deep_check.h"
-#include "cwbvh/synthetic.h"
+#include "cwbvh/compiler/synthetic.h"
 
 namespace cwbvh {
 namespace {

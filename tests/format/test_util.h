@@ -16,7 +16,7 @@
 #include "cwbvh/checksum.h"
 #include "cwbvh/format.h"
 #include "cwbvh/scene_data.h"
-#include "cwbvh/synthetic.h"
+#include "cwbvh/compiler/synthetic.h"
 #include "cwbvh/validate.h"
 #include "cwbvh/writer.h"
 

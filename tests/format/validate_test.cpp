@@ -194,7 +194,10 @@ TEST(Validate, SourceRanges) {
 }
 
 TEST(Validate, NodeContent) {
-    const std::vector<uint8_t> f = test::synthetic_file(300);  // three levels
+    SyntheticOptions so;  // three levels, a root with internal children and an outlier's leaf
+    so.triangles = 300;
+    so.outlier = true;
+    const std::vector<uint8_t> f = test::file_bytes(make_synthetic_scene(so));
     auto node = [&](uint64_t i, auto fn) {
         auto g = f;
         test::edit_element<CwbvhNode>(g, kSectionNodes, i, fn);

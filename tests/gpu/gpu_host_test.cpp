@@ -13,7 +13,7 @@
 #include "cwbvh/device_scene.h"
 #include "cwbvh/gpu_stack.h"
 #include "cwbvh/gpu_trace.h"
-#include "cwbvh/synthetic.h"
+#include "cwbvh/compiler/synthetic.h"
 #include "cwbvh/trace.h"
 
 namespace cwbvh {

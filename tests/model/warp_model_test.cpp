@@ -10,7 +10,7 @@
 
 #include "cwbvh/cpu_trace.h"
 #include "cwbvh/ray_gen.h"
-#include "cwbvh/synthetic.h"
+#include "cwbvh/compiler/synthetic.h"
 #include "cwbvh/warp_model.h"
 
 namespace cwbvh {

@@ -22,7 +22,7 @@
 #include "cwbvh/cpu_trace.h"
 #include "cwbvh/ray_gen.h"
 #include "cwbvh/scene_data.h"
-#include "cwbvh/synthetic.h"
+#include "cwbvh/compiler/synthetic.h"
 #include "cwbvh/tree_depth.h"
 #include "cwbvh/writer.h"
 #include "stress/stress_support.h"

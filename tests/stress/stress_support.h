@@ -2,7 +2,7 @@
 // a temporary .cwbvh and open it; an Embree peer over the file's triangles; a
 // culled exact oracle; mismatch classification against it.
 //
-// Culled oracle: the exact oracle (traverse/oracle.h) is brute force. Here each
+// Culled oracle: the exact oracle (cwbvh/oracle/oracle.h) is brute force. Here each
 // triangle is first tested against its bounding box, padded by 2^-20 of the box's
 // magnitude plus the smallest normal float, with a double-precision slab test whose
 // interval is widened by 1e-9 relative before comparing. Every box intersection
@@ -26,7 +26,7 @@
 
 #include "cwbvh/compiler/compile.h"
 #include "cwbvh/loader.h"
-#include "traverse/oracle.h"
+#include "cwbvh/oracle/oracle.h"
 #include "traverse/test_scenes.h"
 
 namespace cwbvh::stress {

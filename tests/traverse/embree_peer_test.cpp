@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "cwbvh/cpu_trace.h"
-#include "traverse/oracle.h"
+#include "cwbvh/oracle/oracle.h"
 #include "traverse/test_scenes.h"
 
 namespace cwbvh::test {

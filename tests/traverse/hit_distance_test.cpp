@@ -28,16 +28,16 @@
 #include <unistd.h>
 
 #include "cwbvh/cpu_trace.h"
+#include "cwbvh/oracle/oracle.h"
 #include "cwbvh/ray_gen.h"
 #include "cwbvh/traverse.h"
 #include "cwbvh/traverse_bvh2.h"
-#include "traverse/oracle.h"
 #include "traverse/test_scenes.h"
 
 namespace cwbvh::test {
 namespace {
 
-constexpr uint32_t kUlps = 4;  // as tests/gpu/check (gpu_check.cpp, kUlpBound)
+constexpr uint32_t kUlps = 4;  // as tools/gpu_check (gpu_check.cpp, kUlpBound)
 
 /// ulps between two finite floats of the same sign (0xFFFFFFFF otherwise).
 uint32_t ulp_distance(float a, float b) {
@@ -150,10 +150,10 @@ TEST(HitDistance, SponzaCreaseTriangleT) {
 
 TEST(HitDistance, SponzaCreaseSameClosestHitInBothTraversals) {
     SponzaCrease s;
-    // A copy of 10427 moved by +1 in y and z: build_bvh2 then splits on y into
-    // [10424] and [10427, copy], so 10427's box is tested after 10424's hit set tmax
-    // (the order that lost 10427 in the real tree; a leaf popped from the stack is
-    // not re-tested against tmax). build_wide puts all three in one leaf.
+    // A copy of 10427 moved by +1 in y and z (the real tree lost 10427 when its box
+    // was tested after 10424's hit had set tmax: a leaf popped from the stack is not
+    // re-tested against tmax). The core's BVH2 makes 10424 and 10427 sibling leaves
+    // under one node, the copy beside it; its wide tree gives each a leaf slot of the root.
     TriangleRecord copy = s.tris[1];
     for (float* v : {copy.v0, copy.v1, copy.v2}) {
         v[1] += 1.0f;
@@ -288,7 +288,7 @@ bool section(const std::vector<uint8_t>& file, uint32_t type, std::vector<T>& ou
     return false;
 }
 
-/// gpu_check's bounce rays (tests/gpu/check/gpu_check.cpp, spawn): cosine-weighted
+/// gpu_check's bounce rays (tools/gpu_check/gpu_check.cpp, spawn): cosine-weighted
 /// around the geometric normal, from the float hit point, tmin = 1e-5 of the
 /// scene diagonal.
 std::vector<Ray> bounce(const std::vector<Ray>& rays, const std::vector<Hit>& hits,

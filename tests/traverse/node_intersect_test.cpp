@@ -6,7 +6,7 @@
 #include <random>
 
 #include "cwbvh/node_intersect.h"
-#include "traverse/oracle.h"
+#include "cwbvh/oracle/oracle.h"
 
 namespace cwbvh::test {
 namespace {

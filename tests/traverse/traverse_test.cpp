@@ -8,9 +8,9 @@
 #include <vector>
 
 #include "cwbvh/cpu_trace.h"
+#include "cwbvh/oracle/oracle.h"
 #include "cwbvh/traverse.h"
 #include "cwbvh/traverse_bvh2.h"
-#include "traverse/oracle.h"
 #include "traverse/test_scenes.h"
 
 namespace cwbvh::test {

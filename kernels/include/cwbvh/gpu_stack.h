@@ -1,7 +1,8 @@
 // The GPU traversal stack (paper section 4.3): the first kSharedEntries entries of
 // each ray's stack live in shared memory, deeper ones spill to a per-thread array
-// in local memory. Host/device code so the index logic is tested on the host
-// (tests/gpu/gpu_stack_test.cpp) with an ordinary array standing in for shared memory.
+// in local memory. Host/device code, so the index logic runs on the host in the
+// warp model (kernels/src/warp_model.cpp, tested in tests/model) with an ordinary
+// array standing in for shared memory.
 //
 // Shared layout [warp][entry][lane] of 8-byte entries: a warp pushing or popping
 // entry k touches 32 consecutive 8-byte words (256 contiguous bytes), which the

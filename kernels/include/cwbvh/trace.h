@@ -9,7 +9,7 @@
 //   trace_bvh2 - baseline: Aila & Laine 2009 persistent while-while over the BVH2
 //                section (64-byte nodes of Aila, Laine, Karras 2012).
 // Both use the same triangle test and produce the same Hit records as the CPU
-// reference (cpu_trace.h); see tests/gpu/check for the comparison.
+// reference (cpu_trace.h); see tools/gpu_check for the comparison.
 #pragma once
 
 #include <cuda_runtime_api.h>

@@ -1,4 +1,4 @@
-// WideBvh -> the NODE / TRIS / BV2L sections of a .cwbvh file.
+// WideBvh -> the NODE / TRIS / BV2L (or BVH2) sections of a .cwbvh file.
 #pragma once
 
 #include <cstdint>
@@ -13,7 +13,7 @@ namespace cwbvh::compiler {
 struct EncodedTree {
     std::vector<CwbvhNode> nodes;           ///< NODE, node 0 = root
     std::vector<TriangleRecord> triangles;  ///< TRIS, leaf order
-    std::vector<Bvh2Node> bvh2;             ///< BV2L (filled by encode_bvh2, optional)
+    std::vector<Bvh2Node> bvh2;             ///< BV2L or BVH2 (filled by encode_bvh2, optional)
     /// WideBvh::leaf_refs index -> TRIS index.
     std::vector<uint32_t> ref_to_tri;
     /// NODE index -> WideBvh::nodes index.
@@ -46,8 +46,11 @@ struct EncodedTree {
 /// with that leaf in both children. Errors: a wide tree not collapsed from this
 /// binary tree, a wide leaf whose records are not consecutive in TRIS, more than
 /// 2^29 records (kMaxBvh2LeafTris).
+/// leaf_ranges = false gives the BVH2 section instead (format 1.0, spec 3.6): the
+/// whole binary tree in the same node order, every binary leaf a leaf child with
+/// ~child = the TRIS record of its reference and leaf_count 0.
 [[nodiscard]] bool encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree& tree,
-                               std::vector<Bvh2Node>& out, std::string& error);
+                               std::vector<Bvh2Node>& out, std::string& error, bool leaf_ranges = true);
 
 /// Self-check: decodes every node and checks that every child's decoded box
 /// contains its exact WideChild box, that meta/imask/bases/indices are

@@ -58,7 +58,9 @@
 #include "cwbvh/gpu_trace.h"
 #include "cwbvh/loader.h"
 #include "cwbvh/ray_gen.h"
-#include "cwbvh/synthetic.h"
+#ifdef CWBVH_HAVE_SYNTHETIC  // builds with the compiler core (not in the GPU-only configuration)
+#include "cwbvh/compiler/synthetic.h"
+#endif
 #include "cwbvh/trace.h"
 #include "cwbvh/view_catalog.h"
 
@@ -188,7 +190,7 @@ int usage() {
                  "                       [--cpu-only] [SCENE.cwbvh...]\n"
                  "  rays: every catalog view of each scene (default camera for a scene not in the catalog),\n"
                  "  W x H (default 2048 x 2048) primary rays and diffuse bounces 1-4; R timed runs (default 5).\n"
-                 "  no scene: a synthetic 20k-triangle scene. --cpu-only: generate rays and CPU reference only\n"
+                 "  no scene: a synthetic 20k-triangle scene (builds with the compiler only). --cpu-only: generate rays and CPU reference only\n"
                  "  (exercises everything but the GPU; used where there is no device).\n"
                  "  exit: 0 pass or SKIPPED (no CUDA device), 1 mismatch, 2 usage/IO/CUDA error or unusable device\n");
     return 2;
@@ -359,11 +361,17 @@ int main(int argc, char** argv) {
 
     std::vector<Scene> scenes;
     if (paths.empty()) {
+#ifdef CWBVH_HAVE_SYNTHETIC
         SyntheticOptions so;
         so.triangles = 20000;
         SceneData sd = make_synthetic_scene(so);
         scenes.push_back(Scene{"synthetic-20k", std::move(sd.nodes), std::move(sd.triangles), std::move(sd.bvh2),
                                sd.bounds});
+#else
+        std::fprintf(stderr, "cwbvh_gpu_check: error: no scene given (this build has no compiler core, so no "
+                             "synthetic scene: pass SCENE.cwbvh files)\n");
+        return 2;
+#endif
     }
     for (const std::string& p : paths) {
         Expected<File> f = File::open(p);

@@ -1,5 +1,5 @@
 // cwbvhc: compile meshes into a .cwbvh file. Argument parsing and exit codes only;
-// the pipeline lives in compile.cpp.
+// the pipeline lives in compiler/src/compile.cpp (compile.h).
 //   exit 0: success   exit 1: bad input (one line on stderr)   exit 2: usage error
 #include <unistd.h>
 

@@ -1,0 +1,61 @@
+// compile_binary / compile_scene: the core's sequence, one call per stage.
+#include "cwbvh/compiler/core.h"
+
+#include "cwbvh/compiler/auction.h"
+#include "cwbvh/compiler/collapse.h"
+#include "cwbvh/compiler/sah_report.h"
+
+namespace cwbvh::compiler {
+namespace {
+
+bool run_phase(const PhaseRunner& run, const char* name, uint64_t units, const std::function<bool()>& body) {
+    return run ? run(name, units, body) : body();
+}
+
+}  // namespace
+
+bool compile_binary(const Scene& scene, BinaryBvh& binary, const CoreOptions& options, EmitResult& out,
+                    std::string& error, const PhaseRunner& run, Progress* progress) {
+    EmitInput emit;
+    emit.options = &options.emit;
+    emit.scene = &scene;
+    emit.references = binary.references;
+    emit.binary_nodes = binary.nodes.size();
+    emit.collapse = &options.collapse;
+    emit.sbvh = &options.sbvh;
+    emit.sah_binary = report_sah_binary(binary);
+
+    WideBvh wide;
+    if (!run_phase(run, "collapse", binary.nodes.size(),
+                   [&] { return collapse_wide(binary, options.collapse, wide, error, progress); }))
+        return false;
+    if (!run_phase(run, "slots", wide.nodes.size(), [&] {
+            assign_slots(wide, progress);
+            return true;
+        }))
+        return false;
+
+    // The binary tree is only needed again for the optional BVH2/BV2L section;
+    // without it, it is the largest structure alive (36 bytes per node).
+    const bool keep_binary = options.emit.bvh2 != Bvh2Section::kNone;
+    if (!keep_binary) BinaryBvh{}.nodes.swap(binary.nodes);
+    emit.binary = keep_binary ? &binary : nullptr;
+    emit.wide = &wide;
+    return run_phase(run, "encode", 0, [&] { return encode_scene(emit, out, error); });
+}
+
+bool compile_scene(const Scene& scene, const CoreOptions& options, EmitResult& out, std::string& error) {
+    if (scene.triangle_count() == 0) {
+        EmitInput emit;
+        emit.options = &options.emit;
+        emit.scene = &scene;
+        emit.collapse = &options.collapse;
+        emit.sbvh = &options.sbvh;
+        return encode_scene(emit, out, error);
+    }
+    BinaryBvh binary;
+    if (!build_sbvh(scene, options.sbvh, binary, error)) return false;
+    return compile_binary(scene, binary, options, out, error);
+}
+
+}  // namespace cwbvh::compiler
