@@ -1,5 +1,5 @@
 // minimal_render: load a .cwbvh at start-up, trace one frame of primary rays on the
-// GPU (cwbvh/gpu_trace.h) or, without a usable GPU, on the CPU (cwbvh_cpu_trace),
+// GPU (cwbvh/kernels/gpu_trace.h) or, without a usable GPU, on the CPU (cwbvh_cpu_trace),
 // shade by |cos| between the view ray and the geometric normal, write a binary PPM.
 //
 // usage: minimal_render SCENE.cwbvh OUT.ppm [WIDTH HEIGHT] [--cpu]
@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "cwbvh/cpu_trace.h"
-#include "cwbvh/gpu_trace.h"
-#include "cwbvh/loader.h"
+#include "cwbvh/kernels/cpu_trace.h"
+#include "cwbvh/kernels/gpu_trace.h"
+#include "cwbvh/loader/loader.h"
 
 int main(int argc, char** argv) {
     using namespace cwbvh;

@@ -12,9 +12,9 @@
 #include <string>
 #include <vector>
 
-#include "cwbvh/checksum.h"
-#include "cwbvh/loader.h"
 #include "cwbvh/compiler/synthetic.h"
+#include "cwbvh/format/checksum.h"
+#include "cwbvh/loader/loader.h"
 
 namespace {
 

@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "cwbvh/loader.h"
+#include "cwbvh/loader/loader.h"
 
 namespace {
 double now() {

@@ -35,9 +35,9 @@
 #include <unordered_map>
 #include <vector>
 
-#include "cwbvh/cpu_trace.h"
-#include "cwbvh/loader.h"
-#include "cwbvh/ray_gen.h"
+#include "cwbvh/kernels/cpu_trace.h"
+#include "cwbvh/kernels/ray_gen.h"
+#include "cwbvh/loader/loader.h"
 #include "cwbvh/oracle/oracle.h"
 
 namespace {

@@ -1,10 +1,10 @@
 // SASS size probes of the per-lane steps (bench/gpu/step_sizes.sh): each kernel runs
 // one step once, straight-line, so the size of its .text section / 16 bytes (one
 // sm_90 instruction) estimates the instructions one warp issues for that step.
-// The warp model (kernels/include/cwbvh/warp_model.h) weights its phases with them.
-#include "cwbvh/cwbvh_lane.h"
-#include "cwbvh/gpu_common.h"
-#include "cwbvh/traverse_bvh2.h"
+// The warp model (kernels/include/cwbvh/kernels/warp_model.h) weights its phases with them.
+#include "cwbvh/kernels/cwbvh_lane.h"
+#include "cwbvh/kernels/gpu_common.h"
+#include "cwbvh/kernels/traverse_bvh2.h"
 
 namespace cwbvh {
 namespace probe {

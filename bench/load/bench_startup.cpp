@@ -27,9 +27,9 @@
 #include <vector>
 
 #include "cwbvh/compiler/import.h"
-#include "cwbvh/cpu_trace.h"
-#include "cwbvh/loader.h"
-#include "cwbvh/ray_gen.h"
+#include "cwbvh/kernels/cpu_trace.h"
+#include "cwbvh/kernels/ray_gen.h"
+#include "cwbvh/loader/loader.h"
 
 namespace {
 [[noreturn]] void die(const std::string& m) {

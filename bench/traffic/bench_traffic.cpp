@@ -17,9 +17,9 @@
 #include <string>
 #include <vector>
 
-#include "cwbvh/cpu_trace.h"
-#include "cwbvh/loader.h"
-#include "cwbvh/ray_gen.h"
+#include "cwbvh/kernels/cpu_trace.h"
+#include "cwbvh/kernels/ray_gen.h"
+#include "cwbvh/loader/loader.h"
 
 namespace {
 [[noreturn]] void die(const std::string& m) {

@@ -16,10 +16,10 @@
 #include "cwbvh/compiler/build.h"
 #include "cwbvh/compiler/collapse.h"
 #include "cwbvh/compiler/sah_report.h"
-#include "cwbvh/sections.h"
-#include "cwbvh/source_map.h"
-#include "cwbvh/tree_depth.h"
-#include "cwbvh/writer.h"
+#include "cwbvh/format/sections.h"
+#include "cwbvh/format/source_map.h"
+#include "cwbvh/format/tree_depth.h"
+#include "cwbvh/format/writer.h"
 
 namespace cwbvh::compiler {
 namespace {

@@ -6,7 +6,7 @@
 
 #include "cwbvh/compiler/collapse.h"
 #include "cwbvh/compiler/quantize.h"
-#include "cwbvh/node_decode.h"
+#include "cwbvh/format/node_decode.h"
 
 namespace cwbvh::compiler {
 

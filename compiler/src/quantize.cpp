@@ -26,7 +26,7 @@
 
 #include <cmath>
 
-#include "cwbvh/node_decode.h"
+#include "cwbvh/format/node_decode.h"
 
 namespace cwbvh::compiler {
 

@@ -4,7 +4,7 @@
 
 #include "cwbvh/compiler/build.h"
 #include "cwbvh/compiler/quantize.h"
-#include "cwbvh/node_decode.h"
+#include "cwbvh/format/node_decode.h"
 
 namespace cwbvh::compiler {
 

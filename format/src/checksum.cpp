@@ -1,4 +1,4 @@
-#include "cwbvh/checksum.h"
+#include "cwbvh/format/checksum.h"
 
 #include <cstring>
 

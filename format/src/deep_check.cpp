@@ -1,11 +1,11 @@
-#include "cwbvh/deep_check.h"
+#include "cwbvh/format/deep_check.h"
 
 #include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
 
-#include "cwbvh/node_decode.h"
+#include "cwbvh/format/node_decode.h"
 
 namespace cwbvh {
 namespace {

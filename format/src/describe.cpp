@@ -1,10 +1,10 @@
-#include "cwbvh/describe.h"
+#include "cwbvh/format/describe.h"
 
 #include <cinttypes>
 #include <cstdio>
 #include <cstring>
 
-#include "cwbvh/node_decode.h"
+#include "cwbvh/format/node_decode.h"
 
 namespace cwbvh {
 namespace {

@@ -1,6 +1,6 @@
-#include "cwbvh/scene_data.h"
+#include "cwbvh/format/scene_data.h"
 
-#include "cwbvh/sections.h"
+#include "cwbvh/format/sections.h"
 
 namespace cwbvh {
 

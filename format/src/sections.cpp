@@ -1,4 +1,4 @@
-#include "cwbvh/sections.h"
+#include "cwbvh/format/sections.h"
 
 namespace cwbvh {
 

@@ -1,4 +1,4 @@
-#include "cwbvh/source_map.h"
+#include "cwbvh/format/source_map.h"
 
 #include <algorithm>
 

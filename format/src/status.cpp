@@ -1,4 +1,4 @@
-#include "cwbvh/status.h"
+#include "cwbvh/format/status.h"
 
 namespace cwbvh {
 

@@ -1,6 +1,6 @@
 // Tree depths by one forward pass: a parent always precedes its children, so
 // a node's depth is final when the pass reaches it.
-#include "cwbvh/tree_depth.h"
+#include "cwbvh/format/tree_depth.h"
 
 #include <algorithm>
 #include <vector>

@@ -1,8 +1,8 @@
-#include "cwbvh/validate.h"
+#include "cwbvh/format/validate.h"
 
 #include <cstdio>
 
-#include "cwbvh/checksum.h"
+#include "cwbvh/format/checksum.h"
 #include "validate_internal.h"
 
 namespace cwbvh {

@@ -7,8 +7,8 @@
 #include <span>
 #include <string>
 
-#include "cwbvh/status.h"
-#include "cwbvh/validate.h"
+#include "cwbvh/format/status.h"
+#include "cwbvh/format/validate.h"
 
 namespace cwbvh::detail {
 

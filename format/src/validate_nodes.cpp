@@ -1,9 +1,9 @@
 // NODE content rules (spec: "NODE", rules 51xx).
-#include "cwbvh/tree_depth.h"
+#include "cwbvh/format/tree_depth.h"
 #include <cmath>
 #include <vector>
 
-#include "cwbvh/node_decode.h"
+#include "cwbvh/format/node_decode.h"
 #include "validate_internal.h"
 
 namespace cwbvh::detail {

@@ -1,5 +1,5 @@
 // Content rules of TRIS, PMAP, BNDS, BILD, BVH2, VERT, INDX, SRCN (52xx-59xx).
-#include "cwbvh/tree_depth.h"
+#include "cwbvh/format/tree_depth.h"
 #include <cmath>
 #include <vector>
 

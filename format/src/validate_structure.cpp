@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "cwbvh/checksum.h"
-#include "cwbvh/validate.h"
+#include "cwbvh/format/checksum.h"
+#include "cwbvh/format/validate.h"
 
 namespace cwbvh {
 namespace {

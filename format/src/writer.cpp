@@ -1,4 +1,4 @@
-#include "cwbvh/writer.h"
+#include "cwbvh/format/writer.h"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -8,8 +8,8 @@
 #include <cstdio>
 #include <cstring>
 
-#include "cwbvh/checksum.h"
-#include "cwbvh/sections.h"
+#include "cwbvh/format/checksum.h"
+#include "cwbvh/format/sections.h"
 
 namespace cwbvh {
 namespace {

@@ -5,7 +5,7 @@
 #include <string>
 
 #include "cwbvh/cwbvh_device.h"
-#include "cwbvh/device_scene.h"
+#include "cwbvh/kernels/device_scene.h"
 
 struct cwbvh_device_scene {
     cwbvh::DeviceScene scene;

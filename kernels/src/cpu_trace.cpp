@@ -1,13 +1,13 @@
 // CPU reference tracer (see cpu_trace.h).
-#include "cwbvh/cpu_trace.h"
+#include "cwbvh/kernels/cpu_trace.h"
 
 #include <algorithm>
 #include <chrono>
 #include <thread>
 #include <vector>
 
-#include "cwbvh/traverse.h"
-#include "cwbvh/traverse_bvh2.h"
+#include "cwbvh/kernels/traverse.h"
+#include "cwbvh/kernels/traverse_bvh2.h"
 
 namespace cwbvh {
 namespace {

@@ -1,5 +1,5 @@
 // DeviceScene upload (see device_scene.h for the choice of upload method).
-#include "cwbvh/device_scene.h"
+#include "cwbvh/kernels/device_scene.h"
 
 #include <chrono>
 #include <cstring>
@@ -7,8 +7,8 @@
 #include <span>
 #include <utility>
 
-#include "cwbvh/cuda_check.h"
-#include "cwbvh/loader.h"
+#include "cwbvh/kernels/cuda_check.h"
+#include "cwbvh/loader/loader.h"
 
 namespace cwbvh {
 namespace {

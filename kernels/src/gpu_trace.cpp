@@ -1,15 +1,15 @@
-// trace_on_gpu / gpu_available (cwbvh/gpu_trace.h) over DeviceScene + trace().
-#include "cwbvh/gpu_trace.h"
+// trace_on_gpu / gpu_available (cwbvh/kernels/gpu_trace.h) over DeviceScene + trace().
+#include "cwbvh/kernels/gpu_trace.h"
 
 #include <algorithm>
 #include <chrono>
 #include <optional>
 #include <vector>
 
-#include "cwbvh/cuda_check.h"
-#include "cwbvh/device_scene.h"
-#include "cwbvh/loader.h"
-#include "cwbvh/trace.h"
+#include "cwbvh/kernels/cuda_check.h"
+#include "cwbvh/kernels/device_scene.h"
+#include "cwbvh/kernels/trace.h"
+#include "cwbvh/loader/loader.h"
 
 namespace cwbvh {
 namespace {

@@ -1,5 +1,5 @@
 // gpu_trace.h in a build without CUDA: reports why there is no GPU path.
-#include "cwbvh/gpu_trace.h"
+#include "cwbvh/kernels/gpu_trace.h"
 
 namespace cwbvh {
 

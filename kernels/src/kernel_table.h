@@ -6,8 +6,8 @@
 
 #include <cuda_runtime.h>
 
-#include "cwbvh/triangle_intersect.h"
-#include "cwbvh/traverse.h"
+#include "cwbvh/kernels/traverse.h"
+#include "cwbvh/kernels/triangle_intersect.h"
 
 namespace cwbvh {
 namespace gpu {

@@ -1,6 +1,6 @@
-// BVH2 baseline kernel instantiations (warp loop: cwbvh/traverse_gpu_bvh2.h; lane
-// steps: cwbvh/bvh2_lane.h): Aila, Karras, Laine 2012 kepler_dynamic_fetch.
-#include "cwbvh/traverse_gpu_bvh2.h"
+// BVH2 baseline kernel instantiations (warp loop: cwbvh/kernels/traverse_gpu_bvh2.h; lane
+// steps: cwbvh/kernels/bvh2_lane.h): Aila, Karras, Laine 2012 kepler_dynamic_fetch.
+#include "cwbvh/kernels/traverse_gpu_bvh2.h"
 #include "kernel_table.h"
 
 namespace cwbvh {

@@ -1,5 +1,5 @@
-// CWBVH kernel instantiations (loop: cwbvh/traverse_gpu.h).
-#include "cwbvh/traverse_gpu.h"
+// CWBVH kernel instantiations (loop: cwbvh/kernels/traverse_gpu.h).
+#include "cwbvh/kernels/traverse_gpu.h"
 #include "kernel_table.h"
 
 namespace cwbvh {

@@ -1,5 +1,5 @@
 // Ray and hit files (spec/rays.md).
-#include "cwbvh/ray_file.h"
+#include "cwbvh/kernels/ray_file.h"
 
 #include <bit>
 #include <cerrno>

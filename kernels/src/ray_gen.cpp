@@ -1,5 +1,5 @@
 // Ray generation (see ray_gen.h).
-#include "cwbvh/ray_gen.h"
+#include "cwbvh/kernels/ray_gen.h"
 
 #include <algorithm>
 #include <cerrno>
@@ -7,8 +7,8 @@
 #include <cstdlib>
 #include <cstring>
 
-#include "cwbvh/cpu_trace.h"
-#include "cwbvh/fp.h"
+#include "cwbvh/kernels/cpu_trace.h"
+#include "cwbvh/kernels/fp.h"
 
 namespace cwbvh {
 namespace {

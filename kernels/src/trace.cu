@@ -1,13 +1,13 @@
-// CWBVH and BVH2 trace kernels and their launch code (API: cwbvh/trace.h).
+// CWBVH and BVH2 trace kernels and their launch code (API: cwbvh/kernels/trace.h).
 #include <cuda_runtime.h>
 
 #include <algorithm>
 #include <mutex>
 #include <stdexcept>
 
-#include "cwbvh/cuda_check.h"
-#include "cwbvh/trace.h"
-#include "cwbvh/gpu_common.h"
+#include "cwbvh/kernels/cuda_check.h"
+#include "cwbvh/kernels/gpu_common.h"
+#include "cwbvh/kernels/trace.h"
 #include "kernel_table.h"
 
 namespace cwbvh {

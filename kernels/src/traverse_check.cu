@@ -2,8 +2,8 @@
 // proves traverse.h / traverse_bvh2.h build as device code (sm_75, sm_90).
 // Not a production kernel (that is a later issue: shared-memory stack,
 // postponing, dynamic ray fetch).
-#include "cwbvh/traverse.h"
-#include "cwbvh/traverse_bvh2.h"
+#include "cwbvh/kernels/traverse.h"
+#include "cwbvh/kernels/traverse_bvh2.h"
 
 namespace cwbvh {
 

@@ -1,5 +1,5 @@
 // View catalog (see view_catalog.h; format in spec/rays.md, "View catalog").
-#include "cwbvh/view_catalog.h"
+#include "cwbvh/kernels/view_catalog.h"
 
 #include <cerrno>
 #include <cstdio>

@@ -1,11 +1,11 @@
 // Lock-step SIMT warp model (see warp_model.h for the rules it follows).
-#include "cwbvh/warp_model.h"
+#include "cwbvh/kernels/warp_model.h"
 
 #include <algorithm>
 #include <vector>
 
-#include "cwbvh/cwbvh_lane.h"
-#include "cwbvh/bvh2_lane.h"
+#include "cwbvh/kernels/bvh2_lane.h"
+#include "cwbvh/kernels/cwbvh_lane.h"
 
 namespace cwbvh {
 namespace {

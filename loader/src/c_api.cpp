@@ -5,7 +5,7 @@
 #include <optional>
 #include <string>
 
-#include "cwbvh/loader.h"
+#include "cwbvh/loader/loader.h"
 
 static_assert(CWBVH_SECTION_NODES == cwbvh::kMaskNodes && CWBVH_SECTION_ALL == cwbvh::kMaskAll);
 static_assert(int(CWBVH_ERROR_CHECKSUM) == int(cwbvh::Status::kChecksumMismatch));

@@ -1,4 +1,4 @@
-#include "cwbvh/loader.h"
+#include "cwbvh/loader/loader.h"
 
 #include <fcntl.h>
 #include <sys/mman.h>
@@ -8,7 +8,7 @@
 #include <cerrno>
 #include <cstring>
 
-#include "cwbvh/source_map.h"
+#include "cwbvh/format/source_map.h"
 
 namespace cwbvh {
 namespace {

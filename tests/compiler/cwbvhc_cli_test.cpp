@@ -10,7 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "compiler/cli_support.h"
-#include "cwbvh/loader.h"
+#include "cwbvh/loader/loader.h"
 
 namespace fs = std::filesystem;
 using cwbvh::test::count_lines;

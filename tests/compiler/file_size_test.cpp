@@ -8,7 +8,7 @@
 #include <filesystem>
 
 #include "compiler/cli_support.h"
-#include "cwbvh/loader.h"
+#include "cwbvh/loader/loader.h"
 
 namespace fs = std::filesystem;
 

@@ -5,7 +5,7 @@
 
 #include <random>
 
-#include "cwbvh/loader.h"
+#include "cwbvh/loader/loader.h"
 #include "format/test_util.h"
 
 namespace cwbvh {

@@ -2,8 +2,8 @@
 // geometry that escapes its boxes even when the file is structurally valid.
 #include <gtest/gtest.h>
 
-#include "cwbvh/deep_check.h"
 #include "cwbvh/compiler/synthetic.h"
+#include "cwbvh/format/deep_check.h"
 
 namespace cwbvh {
 namespace {

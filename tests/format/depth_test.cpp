@@ -2,8 +2,8 @@
 // kernels' 64-entry stacks can never overflow on a valid file.
 #include <gtest/gtest.h>
 
-#include "cwbvh/node_decode.h"
-#include "cwbvh/tree_depth.h"
+#include "cwbvh/format/node_decode.h"
+#include "cwbvh/format/tree_depth.h"
 #include "format/test_util.h"
 
 namespace cwbvh {

@@ -3,7 +3,7 @@
 
 #include <filesystem>
 
-#include "cwbvh/loader.h"
+#include "cwbvh/loader/loader.h"
 #include "format/test_util.h"
 
 namespace cwbvh {

@@ -7,8 +7,8 @@
 #include <set>
 #include <sstream>
 
-#include "cwbvh/format.h"
-#include "cwbvh/status.h"
+#include "cwbvh/format/format.h"
+#include "cwbvh/format/status.h"
 
 namespace cwbvh {
 namespace {

@@ -13,12 +13,12 @@
 #include <string>
 #include <vector>
 
-#include "cwbvh/checksum.h"
-#include "cwbvh/format.h"
-#include "cwbvh/scene_data.h"
 #include "cwbvh/compiler/synthetic.h"
-#include "cwbvh/validate.h"
-#include "cwbvh/writer.h"
+#include "cwbvh/format/checksum.h"
+#include "cwbvh/format/format.h"
+#include "cwbvh/format/scene_data.h"
+#include "cwbvh/format/validate.h"
+#include "cwbvh/format/writer.h"
 
 namespace cwbvh::test {
 

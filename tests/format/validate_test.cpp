@@ -4,7 +4,7 @@
 #include <cmath>
 #include <utility>
 
-#include "cwbvh/node_decode.h"
+#include "cwbvh/format/node_decode.h"
 #include "format/test_util.h"
 
 namespace cwbvh {

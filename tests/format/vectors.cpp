@@ -1,6 +1,6 @@
 #include "format/vectors.h"
 
-#include "cwbvh/node_decode.h"
+#include "cwbvh/format/node_decode.h"
 #include "format/test_util.h"
 
 namespace cwbvh::test {

@@ -8,8 +8,8 @@
 #include <fstream>
 #include <sstream>
 
-#include "cwbvh/describe.h"
-#include "cwbvh/node_decode.h"
+#include "cwbvh/format/describe.h"
+#include "cwbvh/format/node_decode.h"
 #include "format/test_util.h"
 #include "format/vectors.h"
 

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "cwbvh/view_catalog.h"
+#include "cwbvh/kernels/view_catalog.h"
 #include "format/test_util.h"
 
 namespace cwbvh {

@@ -3,7 +3,7 @@
 
 #include <filesystem>
 
-#include "cwbvh/sections.h"
+#include "cwbvh/format/sections.h"
 #include "format/test_util.h"
 
 namespace cwbvh {

@@ -8,13 +8,13 @@
 #include <string>
 #include <vector>
 
-#include "cwbvh/cpu_trace.h"
-#include "cwbvh/cwbvh_device.h"
-#include "cwbvh/device_scene.h"
-#include "cwbvh/gpu_stack.h"
-#include "cwbvh/gpu_trace.h"
 #include "cwbvh/compiler/synthetic.h"
-#include "cwbvh/trace.h"
+#include "cwbvh/kernels/cpu_trace.h"
+#include "cwbvh/cwbvh_device.h"
+#include "cwbvh/kernels/device_scene.h"
+#include "cwbvh/kernels/gpu_stack.h"
+#include "cwbvh/kernels/gpu_trace.h"
+#include "cwbvh/kernels/trace.h"
 
 namespace cwbvh {
 namespace {

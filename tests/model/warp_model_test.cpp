@@ -8,10 +8,10 @@
 #include <cstring>
 #include <vector>
 
-#include "cwbvh/cpu_trace.h"
-#include "cwbvh/ray_gen.h"
 #include "cwbvh/compiler/synthetic.h"
-#include "cwbvh/warp_model.h"
+#include "cwbvh/kernels/cpu_trace.h"
+#include "cwbvh/kernels/ray_gen.h"
+#include "cwbvh/kernels/warp_model.h"
 
 namespace cwbvh {
 namespace {

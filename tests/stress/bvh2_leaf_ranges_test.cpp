@@ -17,14 +17,14 @@
 #include <filesystem>
 #include <random>
 
-#include "cwbvh/bvh2_lane.h"
-#include "cwbvh/warp_model.h"
-#include "cwbvh/cpu_trace.h"
-#include "cwbvh/ray_gen.h"
-#include "cwbvh/scene_data.h"
 #include "cwbvh/compiler/synthetic.h"
-#include "cwbvh/tree_depth.h"
-#include "cwbvh/writer.h"
+#include "cwbvh/format/scene_data.h"
+#include "cwbvh/format/tree_depth.h"
+#include "cwbvh/format/writer.h"
+#include "cwbvh/kernels/bvh2_lane.h"
+#include "cwbvh/kernels/cpu_trace.h"
+#include "cwbvh/kernels/ray_gen.h"
+#include "cwbvh/kernels/warp_model.h"
 #include "stress/stress_support.h"
 
 namespace cwbvh::stress {

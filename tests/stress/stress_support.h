@@ -25,7 +25,7 @@
 #include <vector>
 
 #include "cwbvh/compiler/compile.h"
-#include "cwbvh/loader.h"
+#include "cwbvh/loader/loader.h"
 #include "cwbvh/oracle/oracle.h"
 #include "traverse/test_scenes.h"
 

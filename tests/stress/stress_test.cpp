@@ -22,8 +22,8 @@
 #include <filesystem>
 #include <random>
 
-#include "cwbvh/cpu_trace.h"
-#include "cwbvh/ray_gen.h"
+#include "cwbvh/kernels/cpu_trace.h"
+#include "cwbvh/kernels/ray_gen.h"
 #include "stress/stress_support.h"
 
 namespace cwbvh::stress {

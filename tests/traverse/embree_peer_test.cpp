@@ -10,7 +10,7 @@
 #include <random>
 #include <vector>
 
-#include "cwbvh/cpu_trace.h"
+#include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/oracle/oracle.h"
 #include "traverse/test_scenes.h"
 

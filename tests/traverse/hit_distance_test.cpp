@@ -27,11 +27,11 @@
 
 #include <unistd.h>
 
-#include "cwbvh/cpu_trace.h"
+#include "cwbvh/kernels/cpu_trace.h"
+#include "cwbvh/kernels/ray_gen.h"
+#include "cwbvh/kernels/traverse.h"
+#include "cwbvh/kernels/traverse_bvh2.h"
 #include "cwbvh/oracle/oracle.h"
-#include "cwbvh/ray_gen.h"
-#include "cwbvh/traverse.h"
-#include "cwbvh/traverse_bvh2.h"
 #include "traverse/test_scenes.h"
 
 namespace cwbvh::test {

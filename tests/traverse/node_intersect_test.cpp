@@ -5,7 +5,7 @@
 #include <cmath>
 #include <random>
 
-#include "cwbvh/node_intersect.h"
+#include "cwbvh/kernels/node_intersect.h"
 #include "cwbvh/oracle/oracle.h"
 
 namespace cwbvh::test {

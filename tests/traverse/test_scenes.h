@@ -12,10 +12,10 @@
 #include <vector>
 
 #include "cwbvh/compiler/core.h"
-#include "cwbvh/format.h"
-#include "cwbvh/node_decode.h"
-#include "cwbvh/ray.h"
-#include "cwbvh/tree_depth.h"
+#include "cwbvh/format/format.h"
+#include "cwbvh/format/node_decode.h"
+#include "cwbvh/format/tree_depth.h"
+#include "cwbvh/kernels/ray.h"
 
 namespace cwbvh::test {
 

@@ -7,10 +7,10 @@
 #include <random>
 #include <vector>
 
-#include "cwbvh/cpu_trace.h"
+#include "cwbvh/kernels/cpu_trace.h"
+#include "cwbvh/kernels/traverse.h"
+#include "cwbvh/kernels/traverse_bvh2.h"
 #include "cwbvh/oracle/oracle.h"
-#include "cwbvh/traverse.h"
-#include "cwbvh/traverse_bvh2.h"
 #include "traverse/test_scenes.h"
 
 namespace cwbvh::test {

@@ -10,7 +10,7 @@
 #include "cwbvh/compiler/auction.h"
 #include "cwbvh/compiler/collapse.h"
 #include "cwbvh/compiler/encode.h"
-#include "cwbvh/node_decode.h"
+#include "cwbvh/format/node_decode.h"
 #include "wide/wide_test_util.h"
 
 namespace cwbvh::compiler {

@@ -9,7 +9,7 @@
 #include <random>
 
 #include "cwbvh/compiler/quantize.h"
-#include "cwbvh/node_decode.h"
+#include "cwbvh/format/node_decode.h"
 
 namespace cwbvh::compiler {
 namespace {

@@ -4,8 +4,8 @@
 #include <string>
 
 #include "commands.h"
-#include "cwbvh/describe.h"
-#include "cwbvh/loader.h"
+#include "cwbvh/format/describe.h"
+#include "cwbvh/loader/loader.h"
 
 namespace cwbvh::tool {
 

@@ -16,10 +16,10 @@
 
 #include "args.h"
 #include "commands.h"
-#include "cwbvh/loader.h"
-#include "cwbvh/ray_file.h"
-#include "cwbvh/ray_gen.h"
-#include "cwbvh/view_catalog.h"
+#include "cwbvh/kernels/ray_file.h"
+#include "cwbvh/kernels/ray_gen.h"
+#include "cwbvh/kernels/view_catalog.h"
+#include "cwbvh/loader/loader.h"
 
 namespace cwbvh::tool {
 

@@ -15,9 +15,9 @@
 
 #include "args.h"
 #include "commands.h"
-#include "cwbvh/cpu_trace.h"
-#include "cwbvh/loader.h"
-#include "cwbvh/ray_gen.h"
+#include "cwbvh/kernels/cpu_trace.h"
+#include "cwbvh/kernels/ray_gen.h"
+#include "cwbvh/loader/loader.h"
 #include "png_write.h"
 
 namespace cwbvh::tool {

@@ -13,10 +13,10 @@
 
 #include "args.h"
 #include "commands.h"
-#include "cwbvh/cpu_trace.h"
-#include "cwbvh/gpu_trace.h"
-#include "cwbvh/loader.h"
-#include "cwbvh/ray_file.h"
+#include "cwbvh/kernels/cpu_trace.h"
+#include "cwbvh/kernels/gpu_trace.h"
+#include "cwbvh/kernels/ray_file.h"
+#include "cwbvh/loader/loader.h"
 
 namespace cwbvh::tool {
 namespace {

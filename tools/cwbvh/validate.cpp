@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "commands.h"
-#include "cwbvh/deep_check.h"
-#include "cwbvh/loader.h"
+#include "cwbvh/format/deep_check.h"
+#include "cwbvh/loader/loader.h"
 
 namespace cwbvh::tool {
 

@@ -2,7 +2,7 @@
 // (no GoogleTest: the GPU machine has none).
 //
 // Rays (the paper's benchmark, Ylitie et al. 2017 section 5, with the one ray
-// generator of kernels/include/cwbvh/ray_gen.h): for every view of each scene in the
+// generator of kernels/include/cwbvh/kernels/ray_gen.h): for every view of each scene in the
 // view catalog (view_catalog.h: --views, else $CWBVH_VIEWS, else the compiled-in
 // views/catalog.txt; the scene key is the file's stem; default_camera only for a
 // scene not in the catalog), W x H primary rays (camera_rays), then diffuse bounces
@@ -52,17 +52,17 @@
 #include <string>
 #include <vector>
 
-#include "cwbvh/cpu_trace.h"
-#include "cwbvh/cuda_check.h"
-#include "cwbvh/device_scene.h"
-#include "cwbvh/gpu_trace.h"
-#include "cwbvh/loader.h"
-#include "cwbvh/ray_gen.h"
+#include "cwbvh/kernels/cpu_trace.h"
+#include "cwbvh/kernels/cuda_check.h"
+#include "cwbvh/kernels/device_scene.h"
+#include "cwbvh/kernels/gpu_trace.h"
+#include "cwbvh/kernels/ray_gen.h"
+#include "cwbvh/loader/loader.h"
 #ifdef CWBVH_HAVE_SYNTHETIC  // builds with the compiler core (not in the GPU-only configuration)
 #include "cwbvh/compiler/synthetic.h"
 #endif
-#include "cwbvh/trace.h"
-#include "cwbvh/view_catalog.h"
+#include "cwbvh/kernels/trace.h"
+#include "cwbvh/kernels/view_catalog.h"
 
 namespace {
 

@@ -1,6 +1,6 @@
 /* C API of the cwbvh loader: open a .cwbvh file (mmap + validate) and get
  * pointers to its sections. The layouts of the elements are those of
- * spec/cwbvh-format.md (and format/include/cwbvh/format.h for C++).
+ * spec/cwbvh-format.md (and format/include/cwbvh/format/format.h for C++).
  *
  * Errors are per handle, so the API is thread-safe without globals: like
  * sqlite3_open, cwbvh_open hands back a handle even when it fails (unless

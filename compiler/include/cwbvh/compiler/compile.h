@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "cwbvh/format.h"
+#include "cwbvh/format/format.h"
 
 namespace cwbvh::compiler {
 

@@ -9,7 +9,7 @@
 
 #include "cwbvh/compiler/encode.h"
 #include "cwbvh/compiler/model.h"
-#include "cwbvh/scene_data.h"
+#include "cwbvh/format/scene_data.h"
 
 namespace cwbvh::compiler {
 

@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "cwbvh/compiler/model.h"
-#include "cwbvh/format.h"
+#include "cwbvh/format/format.h"
 
 namespace cwbvh::compiler {
 

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "cwbvh/format.h"
+#include "cwbvh/format/format.h"
 
 namespace cwbvh::compiler {
 

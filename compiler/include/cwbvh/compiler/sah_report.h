@@ -10,7 +10,7 @@
 #include <span>
 
 #include "cwbvh/compiler/model.h"
-#include "cwbvh/format.h"
+#include "cwbvh/format/format.h"
 
 namespace cwbvh::compiler {
 

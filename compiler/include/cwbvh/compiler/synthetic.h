@@ -7,7 +7,7 @@
 
 #include <cstdint>
 
-#include "cwbvh/scene_data.h"
+#include "cwbvh/format/scene_data.h"
 
 namespace cwbvh {
 

@@ -21,8 +21,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "cwbvh/format.h"
-#include "cwbvh/ray.h"
+#include "cwbvh/format/format.h"
+#include "cwbvh/kernels/ray.h"
 
 namespace cwbvh::oracle {
 

@@ -1,0 +1,40 @@
+// `cwbvh validate --deep`: geometric checks of a compiled file that the
+// structural validator does not make (they prove the tree is *right*, not just
+// well-formed). Runs on a file that already passed validate(); O(nodes +
+// references x depth). Checks (spec section "Deep checks"):
+//   D1 structure: children after their parent and in range (parent links).
+//   D2 containment: a triangle stored once (not split) lies, with its exact
+//      float bounds, inside the decoded box of its leaf slot and of every
+//      ancestor slot up to the root: every box a ray must enter to reach it.
+//      (Decoded boxes need not nest: a child's box is rounded outward on its
+//      own, finer grid and may poke out of its parent's decoded box; what
+//      matters is that the geometry lies inside every box on its path.)
+//   D3 coverage of split triangles: every reference's leaf box meets the
+//      triangle's bounds, and each of 45 lattice points on the triangle
+//      (vertices included, computed in double) lies inside the whole
+//      leaf-to-root box chain of at least one reference (tolerance 2^-40 of
+//      the coordinate magnitude, far below one float ulp).
+//   D4 every stored triangle 0..count-1 is referenced by at least one record.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+#include "cwbvh/format/format.h"
+#include "cwbvh/format/status.h"
+
+namespace cwbvh {
+
+struct DeepCheckStats {
+    uint64_t internal_edges = 0;     ///< parent slot -> child node links (D1)
+    uint64_t unsplit_triangles = 0;  ///< checked by D2
+    uint64_t split_triangles = 0;    ///< checked by D3
+    uint64_t samples = 0;            ///< D3 lattice points tested
+};
+
+/// `stored_triangles`: the number of stored triangles (PMAP total); every
+/// TRIS.prim must be below it (the structural validator guarantees this).
+[[nodiscard]] Result deep_check(std::span<const CwbvhNode> nodes, std::span<const TriangleRecord> triangles,
+                                uint64_t stored_triangles, DeepCheckStats* stats = nullptr);
+
+}  // namespace cwbvh

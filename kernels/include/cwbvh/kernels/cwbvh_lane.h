@@ -1,0 +1,155 @@
+// The per-ray (per-lane) steps of the CWBVH GPU traversal, as host/device code.
+//
+// The CUDA kernel (traverse_gpu.h) and the CPU lock-step warp model (warp_model.h)
+// call exactly these functions; only the warp-level control around them (votes,
+// postponing decisions, ray fetch) is written twice, once with warp intrinsics and
+// once as a loop over 32 simulated lanes, both following the rules documented in
+// warp_model.h and both using the pure policy functions of gpu_stack.h
+// (should_postpone, update_lost_work).
+//
+// A lane's state is kept small on purpose (issue 10: 128 registers capped the
+// kernel at 25 % occupancy):
+//   - the closest hit so far is the TRIS index of its triangle plus tmax (which IS
+//     the hit distance); u, v and the primitive id are recomputed once, when the ray
+//     ends, by running the same triangle test on that triangle again (the test is a
+//     pure function of ray and triangle, so it returns the same t, u, v bit for bit);
+//   - no Ray copy survives set-up: NodeRay and the triangle test's per-ray
+//     constants are all the traversal reads;
+//   - node and triangle records are loaded by the caller (the kernel through the
+//     read-only cache, the model from memory) right before the step that uses them.
+//
+// The steps reproduce traverse.h's traversal order exactly (same child order, same
+// triangle order within a group, same status codes); postponing only delays a
+// triangle group, so the hit found is the same (ties at equal t aside).
+#pragma once
+
+#include <cstdint>
+
+#include "cwbvh/format/format.h"
+#include "cwbvh/format/hostdevice.h"
+#include "cwbvh/kernels/node_intersect.h"
+#include "cwbvh/kernels/ray.h"
+#include "cwbvh/kernels/traverse.h"
+#include "cwbvh/kernels/triangle_intersect.h"
+
+namespace cwbvh {
+
+/// TRIS index meaning "no hit yet".
+inline constexpr uint32_t kNoTriangle = 0xFFFFFFFFu;
+
+template <TriangleTest kTest>
+struct CwbvhLane {
+    NodeRay nray;
+    TriangleIntersector<kTest> tri_test;
+    float tmin;
+    float tmax;           ///< current interval end = distance of the closest hit so far
+    uint32_t hit_tri;     ///< TRIS index of the closest hit so far, kNoTriangle if none
+    StackEntry node_group;
+    StackEntry tri_group;
+
+    /// Starts `ray` (which must be traceable) at the root: a node group of one
+    /// (bit 31, imask 0), as in traverse.h.
+    CWBVH_HD CWBVH_INLINE explicit CwbvhLane(const Ray& ray)
+        : nray(make_node_ray(ray)),
+          tri_test(ray),
+          tmin(ray.tmin),
+          tmax(ray.tmax),
+          hit_tri(kNoTriangle),
+          node_group{0u, 0x80000000u},
+          tri_group{0u, 0u} {}
+
+    CWBVH_HD CWBVH_INLINE bool has_node_work() const { return node_group.hits > 0x00FFFFFFu; }
+    CWBVH_HD CWBVH_INLINE bool wants_triangles() const { return tri_group.hits != 0; }
+};
+
+/// Result of the first half of a node step.
+enum class NodeStep : uint32_t {
+    kVisit = 0,      ///< `index` names the node to load and pass to visit_node
+    kNoNode = 1,     ///< the group was a triangle group: it moved to tri_group
+    kOverflow = 2,   ///< the stack is full (TraceStatus::kStackOverflow)
+    kBadIndex = 3,   ///< the child index is outside NODE (TraceStatus::kBadIndex)
+};
+
+/// Node step, first half: takes the next child of the node group (highest bit
+/// first), pushes the rest of the group if it still has node children, and returns
+/// the child's index. A group without node bits is a (popped) triangle group and
+/// becomes the triangle group.
+template <TriangleTest kTest, class Stack>
+CWBVH_HD CWBVH_INLINE NodeStep next_node(CwbvhLane<kTest>& l, Stack& stack, uint32_t node_count, uint32_t& index) {
+    if (!l.has_node_work()) {
+        l.tri_group = l.node_group;
+        l.node_group = StackEntry{0u, 0u};
+        return NodeStep::kNoNode;
+    }
+    const int bit = highest_bit(l.node_group.hits);
+    const uint32_t imask = l.node_group.hits & 0xFFu;
+    l.node_group.hits &= ~(1u << bit);
+    const uint32_t slot = (uint32_t(bit) - 24u) ^ l.nray.octinv;
+    index = l.node_group.base + uint32_t(popcount32(imask & ((1u << slot) - 1u)));
+    if (l.has_node_work() && !stack.push(l.node_group)) return NodeStep::kOverflow;
+    if (index >= node_count) return NodeStep::kBadIndex;
+    return NodeStep::kVisit;
+}
+
+/// Node step, second half: tests the eight child boxes of the loaded node and makes
+/// its hit children the new node and triangle groups.
+template <TriangleTest kTest>
+CWBVH_HD CWBVH_INLINE void visit_node(CwbvhLane<kTest>& l, const CwbvhNode& node) {
+    const uint32_t hitmask = intersect_node(node, l.nray, l.tmin, l.tmax);
+    l.node_group = StackEntry{node.child_base, (hitmask & 0xFF000000u) | node.imask};
+    l.tri_group = StackEntry{node.tri_base, hitmask & 0x00FFFFFFu};
+}
+
+/// Triangle step, first half: takes the next triangle of the group (highest bit
+/// first); returns its TRIS index, or kNoTriangle when the index is outside TRIS
+/// (TraceStatus::kBadIndex). Call only when wants_triangles().
+template <TriangleTest kTest>
+CWBVH_HD CWBVH_INLINE uint32_t next_triangle(CwbvhLane<kTest>& l, uint32_t tri_count) {
+    const int bit = highest_bit(l.tri_group.hits);
+    l.tri_group.hits &= ~(1u << bit);
+    const uint32_t ti = l.tri_group.base + uint32_t(bit);
+    return ti < tri_count ? ti : kNoTriangle;
+}
+
+/// Triangle step, second half: tests the loaded triangle `ti`; a hit shrinks tmax
+/// and becomes the closest hit. Returns true on a hit.
+template <TriangleTest kTest>
+CWBVH_HD CWBVH_INLINE bool test_triangle(CwbvhLane<kTest>& l, const TriangleRecord& tri, uint32_t ti) {
+    TriangleHit th;
+    if (!l.tri_test(tri, l.tmin, l.tmax, th)) return false;
+    l.tmax = th.t;
+    l.hit_tri = ti;
+    return true;
+}
+
+/// Postpones the triangle group (paper 4.2): pushes it and clears it. False when
+/// the stack is full (TraceStatus::kStackOverflow).
+template <TriangleTest kTest, class Stack>
+CWBVH_HD CWBVH_INLINE bool postpone_triangles(CwbvhLane<kTest>& l, Stack& stack) {
+    if (!stack.push(l.tri_group)) return false;
+    l.tri_group.hits = 0;
+    return true;
+}
+
+/// End of an iteration: a lane whose node group is used up pops the next group.
+/// Returns true when the ray is done (nothing left on the stack).
+template <TriangleTest kTest, class Stack>
+CWBVH_HD CWBVH_INLINE bool pop_if_idle(CwbvhLane<kTest>& l, Stack& stack) {
+    if (l.has_node_work()) return false;
+    if (stack.empty()) return true;
+    l.node_group = stack.pop();
+    return false;
+}
+
+/// The Hit of a finished ray: re-runs the triangle test of the closest hit (same
+/// inputs, same t, u, v) and adds its primitive id; make_miss() without a hit.
+/// The interval end is +inf, not tmax: the test compares its unrounded t with
+/// tmax, and tmax holds that t rounded to float, which may lie below it.
+template <TriangleTest kTest>
+CWBVH_HD CWBVH_INLINE Hit lane_hit(const CwbvhLane<kTest>& l, const TriangleRecord& tri) {
+    TriangleHit th;
+    if (l.hit_tri == kNoTriangle || !l.tri_test(tri, l.tmin, kInfinity, th)) return make_miss();
+    return Hit{th.t, th.u, th.v, tri.prim};
+}
+
+}  // namespace cwbvh

@@ -1,0 +1,93 @@
+// Reproducible ray generation for `cwbvh rays`, `cwbvh render`, the stress tests
+// and the CPU benchmark: pinhole camera rays and the diffuse bounce rays of the
+// paper's benchmark (Ylitie et al. 2017, section 5: rays spawned at the hit points
+// of the previous bounce, cosine-distributed around the surface normal). Host only.
+// Library: cwbvh_cpu_trace.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "cwbvh/format/format.h"
+#include "cwbvh/kernels/ray.h"
+
+namespace cwbvh {
+
+struct Camera {
+    float eye[3];
+    float target[3];
+    float fov_deg = 45.0f;  ///< vertical field of view
+};
+
+/// Looks at the centre of `b` from the direction (1, 1, 2) (above, right, in front
+/// along +z; up = +y), at the distance where the bounding sphere of `b` fills the
+/// 45-degree vertical field of view.
+Camera default_camera(const SceneBounds& b);
+
+/// "ex,ey,ez,tx,ty,tz,fov" (seven finite numbers, 0 < fov < 180, eye != target).
+[[nodiscard]] bool parse_camera(const std::string& text, Camera& camera, std::string& error);
+
+/// width * height rays through the pixel centres, row 0 at the top, row-major;
+/// unit-length directions, tmin = 0, tmax = +inf. Up is +y (+z when looking along y).
+std::vector<Ray> camera_rays(const Camera& camera, uint32_t width, uint32_t height);
+
+/// Counter-based random numbers: PCG hash (Jarzynski, Olano 2020, "Hash Functions
+/// for GPU Rendering", JCGT 9(3)), so a value depends only on its coordinates.
+uint32_t pcg_hash(uint32_t x);
+/// Uniform in [0, 1): 24 random bits of hash(seed, path, bounce, dim).
+float random_unit(uint32_t seed, uint32_t path, uint32_t bounce, uint32_t dim);
+
+/// Wächter, Binder 2019, "A Fast and Robust Method for Avoiding Self-Intersection"
+/// (Ray Tracing Gems, ch. 6): move p off its surface along the unit normal n by a
+/// fixed number of ulps per axis (a tiny absolute step near the origin). No scene
+/// scale enters. Components that would leave the finite range stay unchanged.
+void offset_ray_origin(const float p[3], const float n[3], float out[3]);
+
+/// stored triangle id (TriangleRecord::prim) -> one of its records (SBVH spatial
+/// splits may store a triangle more than once, always with the same vertices).
+class PrimTable {
+public:
+    PrimTable(const TriangleRecord* tris, size_t count);
+    /// nullptr when `prim` is not in the file.
+    const TriangleRecord* find(uint32_t prim) const;
+
+private:
+    const TriangleRecord* tris_;
+    std::vector<uint32_t> index_;
+};
+
+/// Unit geometric normal (v1 - v0) x (v2 - v0) in double; false for a triangle
+/// whose normal is zero in double.
+bool geometric_normal(const TriangleRecord& tri, float n[3]);
+
+/// The diffuse ray leaving hit `hit` of `in` on `tri`: hit point from the
+/// barycentrics (more accurate than org + t dir), normal flipped to face the
+/// incoming ray, origin offset by offset_ray_origin, cosine-weighted direction
+/// (Malley's method) in an orthonormal basis (Duff et al. 2017, "Building an
+/// Orthonormal Basis, Revisited", JCGT 6(1)). tmin = 0, tmax = `tmax`.
+/// False when the hit point or normal is not finite.
+bool diffuse_ray(const Ray& in, const Hit& hit, const TriangleRecord& tri, uint32_t seed, uint32_t path,
+                 uint32_t bounce, float tmax, Ray& out);
+
+struct DiffuseRays {
+    std::vector<Ray> rays;       ///< the rays of the last bounce, in path order
+    std::vector<uint32_t> path;  ///< path (pixel) index of each ray
+};
+
+/// One bounce of the diffuse benchmark paths: for each ray of `cur` whose closest hit
+/// `hits[i]` is a hit, the diffuse ray leaving it (diffuse_ray with `seed`, the ray's
+/// path index and `bounce`, tmax = +inf), in path order. Misses (and hits whose
+/// triangle is not in `table`, or whose ray is not finite) end their path.
+/// hits.size() == cur.rays.size().
+DiffuseRays next_bounce(const PrimTable& table, const DiffuseRays& cur, const std::vector<Hit>& hits, uint32_t seed,
+                        uint32_t bounce);
+
+/// The paper's diffuse benchmark rays: trace `primary` (closest hit, watertight,
+/// CWBVH CPU traversal with `threads`), spawn one diffuse ray per hit, repeat
+/// `bounces` times, and return the rays of bounce `bounces` of the paths still
+/// alive (misses end a path). bounces >= 1. Deterministic for any thread count.
+DiffuseRays diffuse_rays(const CwbvhNode* nodes, size_t node_count, const TriangleRecord* tris, size_t tri_count,
+                         const std::vector<Ray>& primary, uint32_t bounces, uint32_t seed, unsigned threads);
+
+}  // namespace cwbvh

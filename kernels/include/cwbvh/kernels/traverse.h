@@ -1,0 +1,166 @@
+// CWBVH traversal loop (Ylitie, Karras, Laine 2017, section 4 and its pseudocode),
+// written once for the CPU reference and the CUDA kernels.
+//
+// State: the current node group and triangle group, and a stack of compressed
+// 8-byte entries {base, hits} (paper section 4.1):
+//   node group:     base = index in NODE of the first internal child,
+//                   hits = (one bit per not-yet-visited hit child at 24 + (slot ^ octinv))
+//                          | imask of the parent in bits 0..7 (to find the child's index);
+//   triangle group: base = index in TRIS of the parent's first triangle,
+//                   hits = one bit per triangle still to test, bits 0..23.
+// A group with hits > 0x00FFFFFF is a node group; anything else a triangle group.
+// Children are taken highest bit first: bit 24 + (s ^ octinv) is highest for the
+// slot the compiler assigned to the ray's octant (octant-based order, paper 3.2).
+//
+// Stack bound: without postponing, each push stores the rest of one node group
+// before descending one level, and a group is pushed only while it still holds
+// unvisited children, so at most one entry per level of the current path is live:
+// entries <= depth - 1 (depth = number of node levels, root = 1). Postponing (GPU)
+// adds at most one triangle group per level: entries <= 2 * (depth - 1).
+// The stack reports a full push instead of writing past its end; the traversal then
+// stops and returns TraceStatus::kStackOverflow (the hit is not trustworthy).
+// With kCpuStackSize = 64 a tree of depth <= 65 (33 with postponing) never overflows.
+#pragma once
+
+#include <cstdint>
+
+#include "cwbvh/format/format.h"
+#include "cwbvh/format/hostdevice.h"
+#include "cwbvh/format/node_decode.h"
+#include "cwbvh/kernels/fp.h"
+#include "cwbvh/kernels/node_intersect.h"
+#include "cwbvh/kernels/ray.h"
+#include "cwbvh/kernels/triangle_intersect.h"
+
+namespace cwbvh {
+
+enum class TraceStatus : uint32_t {
+    kOk = 0,             ///< hit or miss, exact answer of the traversal
+    kInvalidRay = 1,     ///< ray not traceable (ray.h); answered with a miss
+    kStackOverflow = 2,  ///< stack too small for this tree; hit is a lower bound of nothing
+    kBadIndex = 3,       ///< node or triangle index out of range: corrupt tree
+};
+
+enum class HitMode : uint32_t { kClosest = 0, kAny = 1 };
+
+/// Per-ray work counters (heatmaps, benchmarks).
+struct TraceCounters {
+    uint32_t nodes;      ///< wide (or binary) nodes whose children were tested
+    uint32_t triangles;  ///< triangle tests
+};
+
+struct StackEntry {
+    uint32_t base;
+    uint32_t hits;
+};
+
+/// Fixed-size stack in registers/local memory. A GPU kernel may pass its own
+/// stack type (shared memory + spill) with the same three members.
+template <int kSize>
+struct LocalStack {
+    StackEntry entries[kSize];
+    int size = 0;
+    CWBVH_HD bool push(StackEntry e) {
+        if (size >= kSize) return false;
+        entries[size++] = e;
+        return true;
+    }
+    CWBVH_HD bool empty() const { return size == 0; }
+    CWBVH_HD StackEntry pop() { return entries[--size]; }
+};
+
+inline constexpr int kCpuStackSize = 64;
+
+/// Triangle postponing policy (paper 4.2: push the triangle group while fewer than
+/// 20% of the warp's lanes want to test triangles). The CPU never postpones.
+struct NoPostpone {
+    CWBVH_HD bool operator()() const { return false; }
+};
+
+/// Traverse one ray. nodes[0] is the root (internal). hit receives the closest hit
+/// (HitMode::kClosest) or the first found (kAny), or make_miss().
+template <TriangleTest kTest, HitMode kMode, class Stack, class Postpone = NoPostpone>
+CWBVH_HD CWBVH_INLINE TraceStatus traverse_cwbvh(const CwbvhNode* nodes, uint32_t node_count,
+                                                 const TriangleRecord* tris, uint32_t tri_count,
+                                                 const Ray& ray, Hit& hit, Stack& stack,
+                                                 TraceCounters* counters = nullptr,
+                                                 Postpone postpone = Postpone()) {
+    hit = make_miss();
+    if (!ray_is_traceable(ray) || node_count == 0) return TraceStatus::kInvalidRay;
+    const NodeRay nray = make_node_ray(ray);
+    const TriangleIntersector<kTest> tri_test(ray);
+    const float tmin = ray.tmin;
+    float tmax = ray.tmax;  // shrinks to the closest hit so far (closed interval)
+    uint32_t n_nodes = 0, n_tris = 0;
+    TraceStatus status = TraceStatus::kOk;
+
+    // The root as a node group of one: bit 31 set, imask 0, so whatever slot bit 31
+    // maps to, the index is base + popc(0) = 0 (paper; the root must be internal).
+    StackEntry node_group{0u, 0x80000000u};
+    StackEntry tri_group{0u, 0u};
+    for (;;) {
+        if (node_group.hits > 0x00FFFFFFu) {
+            const int bit = highest_bit(node_group.hits);
+            const uint32_t base = node_group.base;
+            const uint32_t imask = node_group.hits & 0xFFu;
+            node_group.hits &= ~(1u << bit);
+            if (node_group.hits > 0x00FFFFFFu && !stack.push(node_group)) {
+                status = TraceStatus::kStackOverflow;
+                break;
+            }
+            const uint32_t slot = (uint32_t(bit) - 24u) ^ nray.octinv;
+            const uint32_t index = base + uint32_t(popcount32(imask & ((1u << slot) - 1u)));
+            if (index >= node_count) {
+                status = TraceStatus::kBadIndex;
+                break;
+            }
+            const CwbvhNode& node = nodes[index];
+            ++n_nodes;
+            const uint32_t hitmask = intersect_node(node, nray, tmin, tmax);
+            node_group = StackEntry{node.child_base, (hitmask & 0xFF000000u) | node.imask};
+            tri_group = StackEntry{node.tri_base, hitmask & 0x00FFFFFFu};
+        } else {
+            tri_group = node_group;
+            node_group = StackEntry{0u, 0u};
+        }
+
+        bool done = false;
+        while (tri_group.hits != 0) {
+            if (postpone()) {
+                if (!stack.push(tri_group)) status = TraceStatus::kStackOverflow;
+                break;
+            }
+            const int bit = highest_bit(tri_group.hits);
+            tri_group.hits &= ~(1u << bit);
+            const uint32_t ti = tri_group.base + uint32_t(bit);
+            if (ti >= tri_count) {
+                status = TraceStatus::kBadIndex;
+                break;
+            }
+            const TriangleRecord& tri = tris[ti];
+            ++n_tris;
+            TriangleHit th;
+            if (tri_test(tri, tmin, tmax, th)) {
+                tmax = th.t;
+                hit = Hit{th.t, th.u, th.v, tri.prim};
+                if (kMode == HitMode::kAny) {
+                    done = true;
+                    break;
+                }
+            }
+        }
+        if (done || status != TraceStatus::kOk) break;
+
+        if (node_group.hits <= 0x00FFFFFFu) {
+            if (stack.empty()) break;
+            node_group = stack.pop();
+        }
+    }
+    if (counters) {
+        counters->nodes = n_nodes;
+        counters->triangles = n_tris;
+    }
+    return status;
+}
+
+}  // namespace cwbvh

@@ -1,0 +1,192 @@
+// The CWBVH GPU kernel body (device code; include only from .cu files).
+//
+// WHICH IS WHICH:
+//   traverse.h          - the per-ray CWBVH loop (CPU reference; also compiles for
+//                         the device).
+//   traverse_gpu.h      - THIS FILE: the warp-level CWBVH kernel body. It cannot reuse
+//                         traverse.h's loop because dynamic ray fetch must interrupt a
+//                         ray mid-traversal (its node group, triangle group, stack and
+//                         tmax live across refills) and postponing needs warp votes at
+//                         warp-uniform points. It reuses everything below the loop:
+//                         make_node_ray/intersect_node (node_intersect.h),
+//                         TriangleIntersector (triangle_intersect.h), StackEntry and the
+//                         group encoding (traverse.h), so the per-ray step is exactly
+//                         traverse.h's step (same child order, same triangle order
+//                         within a group, same status codes).
+//   traverse_gpu_bvh2.h - the BVH2 baseline kernel.
+//   gpu_common.h        - launch parameters, loads, warp reductions.
+#pragma once
+
+#if !defined(__CUDACC__)
+#error "cwbvh/kernels/traverse_gpu.h is device code: include it from .cu files only"
+#endif
+
+#include <cstdint>
+
+#include "cwbvh/format/format.h"
+#include "cwbvh/kernels/cwbvh_lane.h"
+#include "cwbvh/kernels/gpu_common.h"
+#include "cwbvh/kernels/gpu_stack.h"
+#include "cwbvh/kernels/node_intersect.h"
+#include "cwbvh/kernels/ray.h"
+#include "cwbvh/kernels/traverse.h"
+#include "cwbvh/kernels/triangle_intersect.h"
+
+namespace cwbvh {
+namespace gpu {
+
+/// Warps per block of the CWBVH kernel: 4 warps x 12 entries x 8 B x 32 lanes =
+/// 12 KiB of shared stack per block.
+inline constexpr int kCwbvhWarpsPerBlock = 4;
+inline constexpr int kCwbvhBlockThreads = kCwbvhWarpsPerBlock * kWarpSize;
+/// __launch_bounds__ minimum blocks per SM: 6 x 128 threads caps the kernel at
+/// 65536 / 768 = 85 -> 80 registers per thread (37.5 % occupancy on sm_90), where it
+/// needs no spills (bench/results/ptxas-sm_90.txt). Issue 10's H100 run: this cap
+/// was 5-13 % faster than 128 registers, 8 blocks (64 registers, spills) -5 to +16 %.
+/// CMake -DCWBVH_CWBVH_MIN_BLOCKS=N (scripts/gpu-check.sh: MIN_BLOCKS=N) tries others.
+#ifndef CWBVH_CWBVH_MIN_BLOCKS
+#define CWBVH_CWBVH_MIN_BLOCKS 6
+#endif
+inline constexpr int kCwbvhMinBlocksPerSm = CWBVH_CWBVH_MIN_BLOCKS;
+
+// ---------------------------------------------------------------------------
+// CWBVH kernel body
+// ---------------------------------------------------------------------------
+
+/// Rare per-ray outcomes go straight to the global totals (no per-lane counters).
+__device__ __forceinline__ void count_rare(unsigned long long* total) { atomicAdd(total, 1ull); }
+
+/// Called by every thread of the block; blockDim.x == kCwbvhBlockThreads.
+/// kCount: also count nodes and triangles per lane (the statistics variant; the
+/// production kernel carries no counters). Warp-level control, identical in the
+/// CPU warp model (warp_model.h, which documents it step by step):
+///   refill:  lanes without a ray take the next ones from the global counter (one
+///            atomicAdd per warp);
+///   iterate: every active lane takes one node step; then triangle rounds, one
+///            triangle per wanting lane per round, where a lane postpones its group
+///            when should_postpone(wanting, active, has node work); then lanes
+///            without node work pop; then update_lost_work, and the warp goes back
+///            to refill when the lost work reaches kDynamicFetchNw (rays remaining).
+template <TriangleTest kTest, HitMode kMode, bool kCount>
+__device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, PackedEntry* warp_stack_base) {
+    const unsigned lane = threadIdx.x & (kWarpSize - 1);
+    GpuStack stack(warp_stack_base + lane, kWarpSize);
+
+    bool active = false;
+    uint32_t ray_id = 0;
+    CwbvhLane<kTest> l(Ray{{0.0f, 0.0f, 0.0f}, 0.0f, {1.0f, 1.0f, 1.0f}, 0.0f});
+    // Statistics variant: the per-lane counters live in shared memory, not in two
+    // registers the production variant does not have (keeps the counting variant
+    // within the same 80-register budget without spills).
+    __shared__ uint32_t s_counts[2][kCwbvhBlockThreads];
+    if (kCount) s_counts[0][threadIdx.x] = s_counts[1][threadIdx.x] = 0;
+    bool exhausted = false;  // warp-uniform: the global ray counter ran past the end
+
+    // Ending a ray is recorded here and carried out once per iteration, at the end
+    // (one copy of the hit write and of the closest hit's re-test in the code).
+    constexpr uint32_t kRunning = 0xFFFFFFFFu;
+    uint32_t ending = kRunning;  // TraceStatus of a ray that ended in this iteration
+    auto finish = [&](TraceStatus status) {
+        ending = uint32_t(status);
+        active = false;
+    };
+
+    for (;;) {
+        // ---- Refill idle lanes: one atomicAdd per warp, base broadcast by shuffle.
+        const unsigned idle = __ballot_sync(kFullMask, !active);
+        if (idle != 0 && !exhausted) {
+            const unsigned want = __popc(idle);
+            unsigned base = 0;
+            if (lane == 0) base = atomicAdd(&p.work->next_ray, want);
+            base = __shfl_sync(kFullMask, base, 0);
+            if (base + want >= p.ray_count) exhausted = true;  // no overflow: ray_count <= 2^31
+            if (!active) {
+                const uint32_t id = base + __popc(idle & lanemask_lt(lane));
+                if (id < p.ray_count) {
+                    ray_id = id;
+                    const Ray ray = load_ray(p.rays + id);
+                    if (!ray_is_traceable(ray) || p.node_count == 0) {
+                        store_hit(p.hits + id, make_miss());
+                        if (p.status) p.status[id] = TraceStatus::kInvalidRay;
+                        count_rare(&p.work->invalid);
+                    } else {
+                        l = CwbvhLane<kTest>(ray);
+                        stack.clear();
+                        active = true;
+                    }
+                }
+            }
+        }
+        if (__ballot_sync(kFullMask, active) == 0) {
+            if (exhausted) break;
+            continue;  // every fetched ray was invalid: fetch again
+        }
+
+        // ---- Traversal iterations (warp-uniform loop) until too much work is lost.
+        int lost = 0;
+        for (;;) {
+            if (active) {
+                uint32_t index = 0;
+                const NodeStep step = next_node(l, stack, p.node_count, index);
+                if (step == NodeStep::kVisit) {
+                    if (kCount) ++s_counts[0][threadIdx.x];
+                    visit_node(l, load_node(p.nodes + index));
+                } else if (step == NodeStep::kOverflow) {
+                    finish(TraceStatus::kStackOverflow);
+                } else if (step == NodeStep::kBadIndex) {
+                    finish(TraceStatus::kBadIndex);
+                }
+            }
+
+            // Triangle rounds: one triangle per lane per round; minority lanes postpone.
+            const int active_lanes = __popc(__ballot_sync(kFullMask, active));
+            for (;;) {
+                const bool wants = active && l.wants_triangles();
+                const unsigned wanting = __ballot_sync(kFullMask, wants);
+                if (wanting == 0) break;
+                if (wants) {
+                    if (should_postpone(__popc(wanting), active_lanes, l.has_node_work())) {
+                        if (!postpone_triangles(l, stack)) finish(TraceStatus::kStackOverflow);
+                    } else {
+                        const uint32_t ti = next_triangle(l, p.tri_count);
+                        if (ti == kNoTriangle) {
+                            finish(TraceStatus::kBadIndex);
+                        } else {
+                            if (kCount) ++s_counts[1][threadIdx.x];
+                            if (test_triangle(l, load_triangle(p.tris + ti), ti) && kMode == HitMode::kAny)
+                                finish(TraceStatus::kOk);
+                        }
+                    }
+                }
+            }
+
+            if (active && pop_if_idle(l, stack)) finish(TraceStatus::kOk);
+            if (ending != kRunning) {
+                const TraceStatus status = TraceStatus(ending);
+                // The closest hit so far, also for a ray cut short (overflow, bad index):
+                // what traverse.h returns (hit_tri is always a checked TRIS index).
+                Hit h = make_miss();
+                if (l.hit_tri != kNoTriangle) h = lane_hit(l, load_triangle(p.tris + l.hit_tri));
+                store_hit(p.hits + ray_id, h);
+                if (p.status) p.status[ray_id] = status;
+                if (status == TraceStatus::kStackOverflow) count_rare(&p.work->overflows);
+                if (status == TraceStatus::kBadIndex) count_rare(&p.work->bad_indices);
+                stack.clear();
+                ending = kRunning;
+            }
+
+            const unsigned act = __ballot_sync(kFullMask, active);
+            if (act == 0) break;
+            lost = update_lost_work(lost, __popc(act));
+            if (!exhausted && lost >= kDynamicFetchNw) break;
+        }
+    }
+
+    if (kCount) {
+        warp_add(&p.work->nodes, s_counts[0][threadIdx.x], lane);
+        warp_add(&p.work->triangles, s_counts[1][threadIdx.x], lane);
+    }
+}
+
+}  // namespace gpu
+}  // namespace cwbvh
