@@ -67,6 +67,14 @@ constexpr int kMaxSpatialDepth = 64;
 /// sliver test scene.
 constexpr int kSpatialGateBins = 4;
 constexpr double kSpatialGateSlack = 0.1;
+// SbvhConfig::min_spatial_refs, measured over every shared scene
+// (bench/results/quality/2026-11-25-spatial-min-refs): 16 cuts the compile's
+// instructions by 21% (callgrind, dragon_res2; the small nodes' triangles span
+// many bins, so their chopping is the dearest per reference) for at most +0.23%
+// binary SAH, +0.19% wide SAH, -0.06% children per node and no more bytes per
+// triangle on any scene (32: -30%, up to +0.59% SAH; 64: -35%, +0.73%; 8: -12%;
+// 4: -5%). The collapse packs a subtree this small into one or two wide nodes
+// anyway, where duplicated references buy little.
 /// Upper bound of SbvhConfig::bins.
 constexpr int kMaxBins = 256;
 /// A spatial split that leaves one side with all of the parent's references
@@ -400,16 +408,17 @@ const Bins& bin_references(size_t n, int nbins, Fill&& fill, Bins& result) {
 /// between (double arithmetic rounded to nearest; made monotone), and the
 /// factor that maps a coordinate to a first guess of its bin.
 struct BinPlanes {
-    std::vector<float> p;
-    double scale = 0.0;  // bins / (hi - lo); 0 for a zero-width range
-    int bins() const { return int(p.size()) - 1; }
-    const float* data() const { return p.data(); }
-    float operator[](int i) const { return p[size_t(i)]; }
+    float p[kMaxBins + 1];  // p[0..bins]; no heap allocation per pass
+    int count = 0;          // bins
+    double scale = 0.0;     // bins / (hi - lo); 0 for a zero-width range
+    int bins() const { return count; }
+    const float* data() const { return p; }
+    float operator[](int i) const { return p[i]; }
 };
 BinPlanes bin_planes(float lo, float hi, int bins) {
     BinPlanes bp;
-    std::vector<float>& p = bp.p;
-    p.resize(size_t(bins) + 1);
+    float* p = bp.p;
+    bp.count = bins;
     p[0] = lo;
     p[bins] = hi;
     for (int i = 1; i < bins; ++i) {
@@ -513,7 +522,9 @@ private:
         // Bitwise equal child boxes: the references coincide (duplicated
         // triangles); chopping them never separates anything.
         const bool coincident = std::memcmp(&object.left, &object.right, sizeof(Aabb)) == 0;
-        if (budget == 0 || depth >= kMaxSpatialDepth || !(root_area_ > 0.0) || coincident) return false;
+        if (object.nl + object.nr < config_.min_spatial_refs || budget == 0 || depth >= kMaxSpatialDepth ||
+            !(root_area_ > 0.0) || coincident)
+            return false;
         const double overlap = intersect(object.left, object.right).half_area();
         if (!(overlap > double(config_.split_alpha) * root_area_)) return false;
         const RefList& list = refs();

@@ -2,7 +2,11 @@
 // section 3.3) and TRIS (triangle records in leaf order).
 #include "cwbvh/compiler/encode.h"
 
+#include <atomic>
 #include <cassert>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "cwbvh/compiler/collapse.h"
 #include "cwbvh/compiler/quantize.h"
@@ -11,6 +15,17 @@
 namespace cwbvh::compiler {
 
 namespace {
+
+/// The exact boxes of a wide node's used slots; returns the used-slot mask.
+uint8_t child_boxes(const WideNode& node, Aabb (&boxes)[kWidth]) {
+    uint8_t used = 0;
+    for (int s = 0; s < kWidth; ++s) {
+        if (node.slots[s].kind == WideChild::kEmpty) continue;
+        boxes[s] = node.slots[s].box;
+        used = uint8_t(used | (1u << s));
+    }
+    return used;
+}
 
 bool check_wide(const WideBvh& wide, std::string& error) {
     if (wide.nodes.empty()) {
@@ -87,15 +102,11 @@ bool encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, std
         stack.pop_back();
         const WideNode& node = wide.nodes[w.wide];
         CwbvhNode cn{};
-        Aabb boxes[kWidth];
-        uint8_t used = 0;
         Work kids[kWidth];
         int kid_count = 0;
         for (int s = 0; s < kWidth; ++s) {
             const WideChild& ch = node.slots[s];
             if (ch.kind == WideChild::kEmpty) continue;
-            boxes[s] = ch.box;
-            used = uint8_t(used | (1u << s));
             ++children;
             if (ch.kind == WideChild::kInternal) {
                 if (kid_count == 0) cn.child_base = uint32_t(out.nodes.size());
@@ -153,11 +164,7 @@ bool encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, std
             }
             out.max_leaf_triangles = ch.ref_count > out.max_leaf_triangles ? ch.ref_count : out.max_leaf_triangles;
         }
-        if (!quantize_node(boxes, used, cn, error)) {
-            error += " (wide node " + std::to_string(w.wide) + ")";
-            return false;
-        }
-        out.nodes[w.out] = cn;
+        out.nodes[w.out] = cn;  // layout only: the boxes are quantized below
         for (int k = kid_count; k-- > 0;) stack.push_back(kids[k]);  // slot order: lowest slot next
     }
     for (size_t r = 0; r < out.ref_to_tri.size(); ++r) {
@@ -165,6 +172,29 @@ bool encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, std
             error = "encode: leaf reference " + std::to_string(r) + " is in no leaf";
             return false;
         }
+    }
+    // Quantization, in parallel: each node's exponents and child boxes depend
+    // on its own children's exact boxes only. The first failing node (lowest
+    // index) reports, whatever the schedule.
+    std::atomic<size_t> first_bad{out.nodes.size()};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, out.nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            Aabb boxes[kWidth];
+            const uint8_t used = child_boxes(wide.nodes[out.node_to_wide[i]], boxes);
+            std::string ignored;
+            if (!quantize_node(boxes, used, out.nodes[i], ignored)) {
+                size_t seen = first_bad.load();
+                while (i < seen && !first_bad.compare_exchange_weak(seen, i)) {}
+            }
+        }
+    });
+    if (const size_t bad = first_bad.load(); bad < out.nodes.size()) {
+        Aabb boxes[kWidth];
+        const uint8_t used = child_boxes(wide.nodes[out.node_to_wide[bad]], boxes);
+        CwbvhNode scratch = out.nodes[bad];
+        if (quantize_node(boxes, used, scratch, error)) error = "encode: quantization failed";  // again, for its message
+        error += " (wide node " + std::to_string(out.node_to_wide[bad]) + ")";
+        return false;
     }
     out.avg_children = double(children) / double(out.nodes.size());
     out.sah_wide = sah_cost_wide(wide, c_node, c_prim);
