@@ -73,11 +73,13 @@ int main(int argc, char** argv) {
     std::vector<Hit> hits(rays.size());
     std::string why;
     if (!force_cpu && gpu_available(why)) {
-        const GpuTraceResult res = trace_on_gpu(*file, rays.data(), hits.data(), rays.size(), false, GpuKernel::kCwbvh);
-        if (!res.ok) {
-            std::fprintf(stderr, "GPU trace failed: %s\n", res.error.c_str());
+        Expected<GpuTraceResult> traced =
+            trace_on_gpu(*file, rays.data(), hits.data(), rays.size(), false, GpuKernel::kCwbvh);
+        if (!traced.ok()) {
+            std::fprintf(stderr, "GPU trace failed: %s\n", traced.error().message.c_str());
             return 1;
         }
+        const GpuTraceResult& res = traced.value();
         std::printf("GPU (%s): %zu rays, kernel %.3f ms, %.1f Mrays/s\n", res.device_name.c_str(), rays.size(),
                     res.kernel_ms, res.mrays_per_s);
     } else {

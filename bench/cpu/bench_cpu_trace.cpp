@@ -153,12 +153,14 @@ int main(int argc, char** argv) {
         } else if (a[0] != '-' && !path) {
             path = argv[i];
         } else {
-            std::fprintf(stderr, "usage: cwbvh_bench_cpu FILE.cwbvh [--size N] [--repeats R] [--threads-max T] [--json OUT]\n");
+            std::fprintf(stderr,
+                         "usage: cwbvh_bench_cpu FILE.cwbvh [--size N] [--repeats R] [--threads-max T] [--json OUT]\n");
             return 2;
         }
     }
     if (!path) {
-        std::fprintf(stderr, "usage: cwbvh_bench_cpu FILE.cwbvh [--size N] [--repeats R] [--threads-max T] [--json OUT]\n");
+        std::fprintf(stderr,
+                     "usage: cwbvh_bench_cpu FILE.cwbvh [--size N] [--repeats R] [--threads-max T] [--json OUT]\n");
         return 2;
     }
     auto file = File::open(path);
@@ -173,9 +175,10 @@ int main(int argc, char** argv) {
     };
     std::vector<Set> sets;
     Camera camera = default_camera(*file->bounds());
-    std::string camera_error;
-    if (camera_text && !parse_camera(camera_text, camera, camera_error))
-        return std::fprintf(stderr, "cwbvh_bench_cpu: error: %s\n", camera_error.c_str()), 2;
+    if (camera_text) {
+        if (const Result r = parse_camera(camera_text, camera); !r.ok())
+            return std::fprintf(stderr, "cwbvh_bench_cpu: error: %s\n", r.message.c_str()), 2;
+    }
     sets.push_back({"primary", camera_rays(camera, size, size)});
     sets.push_back({"diffuse", diffuse_rays(nodes.data(), nodes.size(), tris.data(), tris.size(), sets[0].rays, 1, 1,
                                             threads_max).rays});

@@ -222,8 +222,9 @@ int main(int argc, char** argv) {
     const auto rtris = rf->triangles();
     std::vector<cwbvh::Ray> sets[2];
     cwbvh::Camera camera = cwbvh::default_camera(*rf->bounds());
-    std::string camera_error;
-    if (!camera_text.empty() && !cwbvh::parse_camera(camera_text, camera, camera_error)) die(camera_error);
+    if (!camera_text.empty()) {
+        if (const cwbvh::Result r = cwbvh::parse_camera(camera_text, camera); !r.ok()) die(r.message);
+    }
     sets[0] = cwbvh::camera_rays(camera, width, height);
     sets[1] = cwbvh::diffuse_rays(rnodes.data(), rnodes.size(), rtris.data(), rtris.size(), sets[0], bounces, 7u, 0)
                   .rays;

@@ -59,9 +59,8 @@ int run_cwbvh(const std::string& path) {
 
 int run_embree(const std::string& mesh, const std::string& quality) {
     cwbvh::compiler::Scene scene;
-    std::string error;
     std::vector<std::string> warnings;
-    if (!cwbvh::compiler::import_scene({mesh}, {}, scene, error, warnings)) die(error);
+    if (const cwbvh::Result r = cwbvh::compiler::import_scene({mesh}, {}, scene, warnings); !r.ok()) die(r.message);
     cwbvh::SceneBounds b{{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}};
     for (const auto& v : scene.vertices)
         for (int a = 0; a < 3; ++a) {

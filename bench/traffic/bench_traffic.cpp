@@ -55,7 +55,8 @@ int main(int argc, char** argv) {
         else if (!a.empty() && a[0] == '-') die("unknown option " + a);
         else path = a;
     }
-    if (path.empty() || width == 0 || height == 0 || bounces == 0) die("usage: FILE.cwbvh [--width W] [--height H] [--bounces B]");
+    if (path.empty() || width == 0 || height == 0 || bounces == 0)
+        die("usage: FILE.cwbvh [--width W] [--height H] [--bounces B]");
     auto file = cwbvh::File::open(path);
     if (!file.ok()) die(file.error().message);
     const auto nodes = file->nodes();
@@ -66,8 +67,9 @@ int main(int argc, char** argv) {
     if (!b) die(path + ": no bounds section");
 
     cwbvh::Camera camera = cwbvh::default_camera(*b);
-    std::string camera_error;
-    if (!camera_text.empty() && !cwbvh::parse_camera(camera_text, camera, camera_error)) die(camera_error);
+    if (!camera_text.empty()) {
+        if (const cwbvh::Result r = cwbvh::parse_camera(camera_text, camera); !r.ok()) die(r.message);
+    }
     const std::vector<cwbvh::Ray> primary = cwbvh::camera_rays(camera, width, height);
     const cwbvh::DiffuseRays diffuse =
         cwbvh::diffuse_rays(nodes.data(), nodes.size(), tris.data(), tris.size(), primary, bounces, 1u, threads);
@@ -85,8 +87,8 @@ int main(int argc, char** argv) {
                 o.threads = threads;
                 o.counters = c.data();
                 const cwbvh::CpuTraceStats s =
-                    tree == 0 ? cwbvh::trace_cwbvh_cpu(nodes.data(), nodes.size(), tris.data(), tris.size(), rays.data(),
-                                                       hits_cw.data(), rays.size(), o)
+                    tree == 0 ? cwbvh::trace_cwbvh_cpu(nodes.data(), nodes.size(), tris.data(), tris.size(),
+                                                       rays.data(), hits_cw.data(), rays.size(), o)
                               : cwbvh::trace_bvh2_cpu(bvh2.data(), bvh2.size(), tris.data(), tris.size(), rays.data(),
                                                       hits_b2.data(), rays.size(), o);
                 Row r;

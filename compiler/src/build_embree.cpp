@@ -147,16 +147,22 @@ void flatten(const ENode* root, const Aabb& root_box, BinaryBvh& out) {
 
 }  // namespace
 
-bool build_embree(const Scene& scene, const SbvhConfig& config, BinaryBvh& out, std::string& error) {
+Result build_embree(const Scene& scene, const SbvhConfig& config, BinaryBvh& out) {
     out = BinaryBvh{};
     const size_t tris = scene.triangle_count();
-    if (tris == 0) { error = "build_embree: the scene has no triangles"; return false; }
-    if (tris >= kInvalidIndex / 4) { error = "build_embree: too many triangles"; return false; }
+    if (tris == 0) return Result::fail(Status::kInvalidArgument, 0, "build_embree: the scene has no triangles");
+    if (tris >= kInvalidIndex / 4) return Result::fail(Status::kInvalidArgument, 0, "build_embree: too many triangles");
     for (size_t i = 0; i < tris; ++i) {
         for (const uint32_t v : scene.indices[i]) {
-            if (v >= scene.vertices.size()) { error = "build_embree: triangle " + std::to_string(i) + " has a vertex index out of range"; return false; }
+            if (v >= scene.vertices.size()) {
+                return Result::fail(Status::kInvalidArgument, 0,
+                                    "build_embree: triangle " + std::to_string(i) + " has a vertex index out of range");
+            }
             for (const float c : scene.vertices[v]) {
-                if (!std::isfinite(c)) { error = "build_embree: triangle " + std::to_string(i) + " has a non-finite vertex"; return false; }
+                if (!std::isfinite(c)) {
+                    return Result::fail(Status::kInvalidArgument, 0,
+                                        "build_embree: triangle " + std::to_string(i) + " has a non-finite vertex");
+                }
             }
         }
     }
@@ -173,9 +179,13 @@ bool build_embree(const Scene& scene, const SbvhConfig& config, BinaryBvh& out, 
     }
 
     bool ok = false;
+    std::string error;
     auto run = [&] {
         RTCDevice device = rtcNewDevice("threads=1");
-        if (!device) { error = "build_embree: rtcNewDevice failed"; return; }
+        if (!device) {
+            error = "build_embree: rtcNewDevice failed";
+            return;
+        }
         RTCBVH bvh = rtcNewBVH(device);
         Context ctx{&scene};
         RTCBuildArguments args = rtcDefaultBuildArguments();
@@ -213,7 +223,7 @@ bool build_embree(const Scene& scene, const SbvhConfig& config, BinaryBvh& out, 
     // One TBB thread as well: Embree's TBB tasking runs in the caller's arena.
     tbb::task_arena arena(1);
     arena.execute(run);
-    if (!ok) return false;
+    if (!ok) return Result::fail(Status::kInternal, 0, error);
     // Root box: the union of the children (Embree gives child bounds only).
     if (!out.nodes[0].is_leaf()) {
         Aabb b = out.nodes[out.nodes[0].child[0]].box;
@@ -252,7 +262,7 @@ bool build_embree(const Scene& scene, const SbvhConfig& config, BinaryBvh& out, 
     out.spatial_splits = 0;
     for (const uint8_t f : spatial) out.spatial_splits += f;
     out.object_splits = (leaves - 1) - out.spatial_splits;
-    return true;
+    return Result::success();
 }
 
 }  // namespace cwbvh::compiler

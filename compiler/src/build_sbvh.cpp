@@ -785,17 +785,20 @@ private:
     double spatial_lower_bound(const RefList& refs, int a, const BinPlanes& planes) const {
         const int nb = planes.bins();
         LowerBoundBins storage;
-        const LowerBoundBins& bins = bin_references(refs.size(), nb, [&](size_t begin, size_t end, LowerBoundBins& out) {
-            for (size_t i = begin; i != end; ++i) {
-                const Aabb& box = refs[i].box;
-                const int b0 = bin_of_lo(planes, box.lo[a]);
-                const int b1 = std::max(b0, bin_of_hi(planes, box.hi[a]));
-                merge(out.by_last[size_t(b1)], box);
-                merge(out.by_first[size_t(b0)], box);
-                ++out.enter[size_t(b0)];
-                ++out.exit[size_t(b1)];
-            }
-        }, storage);  // large nodes in parallel, like the other binning passes
+        const LowerBoundBins& bins = bin_references(
+            refs.size(), nb,
+            [&](size_t begin, size_t end, LowerBoundBins& out) {
+                for (size_t i = begin; i != end; ++i) {
+                    const Aabb& box = refs[i].box;
+                    const int b0 = bin_of_lo(planes, box.lo[a]);
+                    const int b1 = std::max(b0, bin_of_hi(planes, box.hi[a]));
+                    merge(out.by_last[size_t(b1)], box);
+                    merge(out.by_first[size_t(b0)], box);
+                    ++out.enter[size_t(b0)];
+                    ++out.exit[size_t(b1)];
+                }
+            },
+            storage);  // large nodes in parallel, like the other binning passes
         // Left of plane b: boxes of references whose last bin is < b (wholly
         // left), counts of those whose first bin is < b; mirrored on the right.
         double best = std::numeric_limits<double>::infinity();
@@ -933,28 +936,39 @@ void flatten(Piece& p, std::vector<BinaryNode>& out) {
 
 }  // namespace
 
-bool build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out, std::string& error,
+Result build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out,
                 Progress* progress) {
     out = BinaryBvh{};
     const size_t tris = scene.triangle_count();
-    if (tris == 0) { error = "build_sbvh: the scene has no triangles"; return false; }
-    if (tris >= kInvalidIndex / 4) { error = "build_sbvh: too many triangles for 32-bit node indices"; return false; }
-    if (config.bins < 2 || config.bins > kMaxBins) { error = "build_sbvh: bins must be in 2..256"; return false; }
+    if (tris == 0) return Result::fail(Status::kInvalidArgument, 0, "build_sbvh: the scene has no triangles");
+    if (tris >= kInvalidIndex / 4) {
+        return Result::fail(Status::kInvalidArgument, 0, "build_sbvh: too many triangles for 32-bit node indices");
+    }
+    if (config.bins < 2 || config.bins > kMaxBins) {
+        return Result::fail(Status::kInvalidArgument, 0, "build_sbvh: bins must be in 2..256");
+    }
     if (!(config.max_reference_growth >= 0.0) || !(config.split_alpha >= 0.0f)) {
-        error = "build_sbvh: split_alpha and max_reference_growth must be >= 0";
-        return false;
+        return Result::fail(Status::kInvalidArgument, 0,
+                            "build_sbvh: split_alpha and max_reference_growth must be >= 0");
     }
     for (size_t i = 0; i < tris; ++i) {
         for (const uint32_t v : scene.indices[i]) {
-            if (v >= scene.vertices.size()) { error = "build_sbvh: triangle " + std::to_string(i) + " has a vertex index out of range"; return false; }
+            if (v >= scene.vertices.size()) {
+                return Result::fail(Status::kInvalidArgument, 0,
+                                    "build_sbvh: triangle " + std::to_string(i) + " has a vertex index out of range");
+            }
             for (const float c : scene.vertices[v]) {
-                if (!std::isfinite(c)) { error = "build_sbvh: triangle " + std::to_string(i) + " has a non-finite vertex"; return false; }
+                if (!std::isfinite(c)) {
+                    return Result::fail(Status::kInvalidArgument, 0,
+                                        "build_sbvh: triangle " + std::to_string(i) + " has a non-finite vertex");
+                }
             }
         }
     }
     // Budget: the total number of references may grow by growth*tris, capped
     // so that node indices stay 32-bit.
-    const double extra_d = std::min(config.max_reference_growth * double(tris), double(kInvalidIndex / 4) - double(tris));
+    const double extra_d =
+        std::min(config.max_reference_growth * double(tris), double(kInvalidIndex / 4) - double(tris));
     const uint64_t extra = uint64_t(std::max(0.0, extra_d));
 
     auto run = [&] {
@@ -981,7 +995,7 @@ bool build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out, st
     uint64_t leaves = 0;
     for (const BinaryNode& n : out.nodes) leaves += n.is_leaf() ? 1 : 0;
     out.references = leaves;
-    return true;
+    return Result::success();
 }
 
 }  // namespace cwbvh::compiler

@@ -38,11 +38,11 @@ std::string box_str(const Aabb& b) {
 }
 }  // namespace
 
-bool validate_binary_bvh(const Scene& scene, const BinaryBvh& bvh, std::string& error, int samples,
+Result validate_binary_bvh(const Scene& scene, const BinaryBvh& bvh, int samples,
                          uint64_t seed) {
     const size_t tris = scene.triangle_count();
     const auto& nodes = bvh.nodes;
-    if (nodes.empty()) { error = "no nodes"; return false; }
+    if (nodes.empty()) return Result::fail(Status::kInternal, 0, "no nodes");
     // Depth-first layout, left first, root 0: visiting from the root must
     // produce indices 0, 1, 2, ... in order.
     std::vector<std::vector<uint32_t>> leaves_of(tris);
@@ -52,35 +52,68 @@ bool validate_binary_bvh(const Scene& scene, const BinaryBvh& bvh, std::string& 
     while (!stack.empty()) {
         const uint32_t i = stack.back();
         stack.pop_back();
-        if (i != expect) { error = "node " + std::to_string(i) + " is not in depth-first order (expected " + std::to_string(expect) + ")"; return false; }
+        if (i != expect) {
+            return Result::fail(
+                Status::kInternal, 0,
+                "node " + std::to_string(i) + " is not in depth-first order (expected " + std::to_string(expect) + ")");
+        }
         ++expect;
         const BinaryNode& n = nodes[i];
-        if (n.box.empty()) { error = "node " + std::to_string(i) + " has an empty box"; return false; }
+        if (n.box.empty()) return Result::fail(Status::kInternal, 0, "node " + std::to_string(i) + " has an empty box");
         if (n.is_leaf()) {
-            if (n.child[0] != kInvalidIndex || n.child[1] != kInvalidIndex) { error = "leaf " + std::to_string(i) + " has children"; return false; }
-            if (n.prim >= tris) { error = "leaf " + std::to_string(i) + " has triangle id out of range"; return false; }
+            if (n.child[0] != kInvalidIndex || n.child[1] != kInvalidIndex) {
+                return Result::fail(Status::kInternal, 0, "leaf " + std::to_string(i) + " has children");
+            }
+            if (n.prim >= tris) {
+                return Result::fail(Status::kInternal, 0,
+                                    "leaf " + std::to_string(i) + " has triangle id out of range");
+            }
             Aabb tb;
             for (const Vec3& v : scene.triangle(n.prim)) tb.grow(v);
             Aabb meet;
-            for (int j = 0; j < 3; ++j) { meet.lo[j] = std::max(tb.lo[j], n.box.lo[j]); meet.hi[j] = std::min(tb.hi[j], n.box.hi[j]); }
-            if (meet.empty()) { error = "leaf " + std::to_string(i) + " box " + box_str(n.box) + " misses triangle " + std::to_string(n.prim) + " box " + box_str(tb); return false; }
+            for (int j = 0; j < 3; ++j) {
+                meet.lo[j] = std::max(tb.lo[j], n.box.lo[j]);
+                meet.hi[j] = std::min(tb.hi[j], n.box.hi[j]);
+            }
+            if (meet.empty()) {
+                return Result::fail(Status::kInternal, 0,
+                                    "leaf " + std::to_string(i) + " box " + box_str(n.box) + " misses triangle " +
+                                        std::to_string(n.prim) + " box " + box_str(tb));
+            }
             leaves_of[n.prim].push_back(i);
             ++leaves;
             continue;
         }
         for (int c = 0; c < 2; ++c) {
             const uint32_t ch = n.child[c];
-            if (ch >= nodes.size() || ch <= i) { error = "node " + std::to_string(i) + " has a bad child index"; return false; }
-            if (!contains(n.box, nodes[ch].box)) { error = "node " + std::to_string(i) + " box " + box_str(n.box) + " does not contain child " + std::to_string(ch) + " box " + box_str(nodes[ch].box); return false; }
+            if (ch >= nodes.size() || ch <= i) {
+                return Result::fail(Status::kInternal, 0, "node " + std::to_string(i) + " has a bad child index");
+            }
+            if (!contains(n.box, nodes[ch].box)) {
+                return Result::fail(Status::kInternal, 0,
+                                    "node " + std::to_string(i) + " box " + box_str(n.box) +
+                                        " does not contain child " + std::to_string(ch) + " box " +
+                                        box_str(nodes[ch].box));
+            }
         }
-        if (n.child[0] != i + 1) { error = "node " + std::to_string(i) + ": left child is not the next node"; return false; }
+        if (n.child[0] != i + 1) {
+            return Result::fail(Status::kInternal, 0,
+                                "node " + std::to_string(i) + ": left child is not the next node");
+        }
         stack.push_back(n.child[1]);
         stack.push_back(n.child[0]);
     }
-    if (expect != nodes.size()) { error = "unreachable nodes: " + std::to_string(nodes.size() - expect); return false; }
-    if (leaves != bvh.references) { error = "references " + std::to_string(bvh.references) + " != leaves " + std::to_string(leaves); return false; }
+    if (expect != nodes.size()) {
+        return Result::fail(Status::kInternal, 0, "unreachable nodes: " + std::to_string(nodes.size() - expect));
+    }
+    if (leaves != bvh.references) {
+        return Result::fail(Status::kInternal, 0,
+                            "references " + std::to_string(bvh.references) + " != leaves " + std::to_string(leaves));
+    }
     for (size_t t = 0; t < tris; ++t) {
-        if (leaves_of[t].empty()) { error = "triangle " + std::to_string(t) + " is in no leaf"; return false; }
+        if (leaves_of[t].empty()) {
+            return Result::fail(Status::kInternal, 0, "triangle " + std::to_string(t) + " is in no leaf");
+        }
     }
     // Coverage: random points on random triangles (some exactly at vertices
     // and on edges) must lie in one of that triangle's reference boxes.
@@ -103,7 +136,8 @@ bool validate_binary_bvh(const Scene& scene, const BinaryBvh& bvh, std::string& 
         for (int j = 0; j < 3; ++j) {
             // a + w1 (b - a) + w2 (c - a): exact on flat axes.
             p[j] = double(tri[0][j]) + w1 * (double(tri[1][j]) - tri[0][j]) + w2 * (double(tri[2][j]) - tri[0][j]);
-            const double m = std::max({std::fabs(double(tri[0][j])), std::fabs(double(tri[1][j])), std::fabs(double(tri[2][j]))});
+            const double m =
+                std::max({std::fabs(double(tri[0][j])), std::fabs(double(tri[1][j])), std::fabs(double(tri[2][j]))});
             tol[j] = 1e-12 * m;  // double evaluation error, far below one float ulp
         }
         bool inside = false;
@@ -115,12 +149,13 @@ bool validate_binary_bvh(const Scene& scene, const BinaryBvh& bvh, std::string& 
         }
         if (!inside) {
             char buf[160];
-            std::snprintf(buf, sizeof buf, "point (%.17g %.17g %.17g) of triangle %zu is in none of its %zu reference boxes", p[0], p[1], p[2], t, leaves_of[t].size());
-            error = buf;
-            return false;
+            std::snprintf(buf, sizeof buf,
+                          "point (%.17g %.17g %.17g) of triangle %zu is in none of its %zu reference boxes", p[0], p[1],
+                          p[2], t, leaves_of[t].size());
+            return Result::fail(Status::kInternal, 0, buf);
         }
     }
-    return true;
+    return Result::success();
 }
 
 }  // namespace cwbvh::compiler

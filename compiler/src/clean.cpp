@@ -44,8 +44,7 @@ bool is_degenerate(const Vec3& a, const Vec3& b, const Vec3& c) {
            product_difference_is_zero(e1[0], e2[1], e1[1], e2[0]);
 }
 
-bool clean_and_append(const RawInput& input, uint32_t input_index, Scene& scene,
-                      std::string& error) {
+Result clean_and_append(const RawInput& input, uint32_t input_index, Scene& scene) {
     for (const auto& [kind, n] : input.skipped_primitives) scene.skipped_primitives[kind] += n;
     if (input.rejected_by_reader > 0) {
         scene.input_triangles += input.rejected_by_reader;
@@ -69,10 +68,9 @@ bool clean_and_append(const RawInput& input, uint32_t input_index, Scene& scene,
             // Importers guarantee indices < nv; re-check (programmer contract
             // turned into a clean error rather than UB).
             if (tri[0] >= nv || tri[1] >= nv || tri[2] >= nv) {
-                error = "mesh " + std::to_string(prim.mesh) + " primitive " +
+                return Result::fail(Status::kBadInput, 0, "mesh " + std::to_string(prim.mesh) + " primitive " +
                         std::to_string(prim.primitive) + ": triangle " + std::to_string(t) +
-                        " has a vertex index out of range";
-                return false;
+                        " has a vertex index out of range");
             }
             if (!vertex_finite[tri[0]] || !vertex_finite[tri[1]] || !vertex_finite[tri[2]]) {
                 ++scene.dropped["nonfinite"];
@@ -82,12 +80,11 @@ bool clean_and_append(const RawInput& input, uint32_t input_index, Scene& scene,
                 const Vec3& v = prim.vertices[tri[k]];
                 for (int a = 0; a < 3; ++a) {
                     if (std::fabs(v[a]) > kMaxCoordinate) {
-                        error = "mesh " + std::to_string(prim.mesh) + " primitive " +
+                        return Result::fail(Status::kBadInput, 0, "mesh " + std::to_string(prim.mesh) + " primitive " +
                                 std::to_string(prim.primitive) + ": coordinate " +
                                 std::to_string(v[a]) +
                                 " exceeds 2^125 (about 4.25e37), which the node quantization "
-                                "cannot encode";
-                        return false;
+                                "cannot encode");
                     }
                 }
             }
@@ -105,8 +102,7 @@ bool clean_and_append(const RawInput& input, uint32_t input_index, Scene& scene,
         for (size_t i = 0; i < nv; ++i)
             if (remap[i] == 0) remap[i] = uint32_t(std::min<uint64_t>(next++, kInvalidIndex));
         if (next >= kInvalidIndex || scene.indices.size() + kept.size() >= kInvalidIndex) {
-            error = "the merged scene exceeds 2^32-1 vertices or triangles";
-            return false;
+            return Result::fail(Status::kBadInput, 0, "the merged scene exceeds 2^32-1 vertices or triangles");
         }
         for (size_t i = 0; i < nv; ++i)
             if (remap[i] != kInvalidIndex) scene.vertices.push_back(prim.vertices[i]);
@@ -118,7 +114,7 @@ bool clean_and_append(const RawInput& input, uint32_t input_index, Scene& scene,
             scene.sources.push_back(SourceRef{input_index, prim.mesh, prim.primitive, t});
         }
     }
-    return true;
+    return Result::success();
 }
 
 }  // namespace cwbvh::compiler

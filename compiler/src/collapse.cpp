@@ -9,29 +9,23 @@
 namespace cwbvh::compiler {
 namespace detail {
 
-bool check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count, std::string& error) {
+Result check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count) {
     const size_t n = binary.nodes.size();
-    if (n == 0) {
-        error = "binary BVH has no nodes";
-        return false;
-    }
-    if (n >= size_t(kInvalidIndex)) {
-        error = "binary BVH has too many nodes";
-        return false;
-    }
+    if (n == 0) return Result::fail(Status::kInvalidArgument, 0, "binary BVH has no nodes");
+    if (n >= size_t(kInvalidIndex)) return Result::fail(Status::kInvalidArgument, 0, "binary BVH has too many nodes");
     std::vector<uint8_t> parents(n, 0);
     for (size_t i = 0; i < n; ++i) {
         const BinaryNode& node = binary.nodes[i];
         for (int a = 0; a < 3; ++a) {
             if (!std::isfinite(node.box.lo[a]) || !std::isfinite(node.box.hi[a]) || node.box.lo[a] > node.box.hi[a]) {
-                error = "binary BVH node " + std::to_string(i) + " has an empty or non-finite box";
-                return false;
+                return Result::fail(Status::kInvalidArgument, 0,
+                                    "binary BVH node " + std::to_string(i) + " has an empty or non-finite box");
             }
         }
         if (node.is_leaf()) {
             if (node.child[0] != kInvalidIndex || node.child[1] != kInvalidIndex) {
-                error = "binary BVH leaf " + std::to_string(i) + " has children";
-                return false;
+                return Result::fail(Status::kInvalidArgument, 0,
+                                    "binary BVH leaf " + std::to_string(i) + " has children");
             }
             continue;
         }
@@ -39,19 +33,19 @@ bool check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count, std
             const uint32_t ch = node.child[c];
             // Children after their parent (depth-first order) rules out cycles.
             if (ch == kInvalidIndex || ch <= i || ch >= n) {
-                error = "binary BVH node " + std::to_string(i) + " has a bad child index";
-                return false;
+                return Result::fail(Status::kInvalidArgument, 0,
+                                    "binary BVH node " + std::to_string(i) + " has a bad child index");
             }
             if (parents[ch]++ != 0) {
-                error = "binary BVH node " + std::to_string(ch) + " has more than one parent";
-                return false;
+                return Result::fail(Status::kInvalidArgument, 0,
+                                    "binary BVH node " + std::to_string(ch) + " has more than one parent");
             }
         }
     }
     for (size_t i = 1; i < n; ++i) {
         if (parents[i] != 1) {
-            error = "binary BVH node " + std::to_string(i) + " is unreachable from the root";
-            return false;
+            return Result::fail(Status::kInvalidArgument, 0,
+                                "binary BVH node " + std::to_string(i) + " is unreachable from the root");
         }
     }
     // Children have larger indices: a reverse sweep is a post-order.
@@ -65,7 +59,7 @@ bool check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count, std
             ref_count[i] = uint32_t(std::min<uint64_t>(sum, std::numeric_limits<uint32_t>::max()));
         }
     }
-    return true;
+    return Result::success();
 }
 
 namespace {
@@ -133,11 +127,10 @@ WideChild make_wide_leaf(const BinaryBvh& binary, uint32_t node, WideBvh& wide) 
     return child;
 }
 
-bool add_internal_child(const BinaryBvh& binary, uint32_t binary_node, uint32_t parent, int slot, WideBvh& out,
-                        uint32_t& child, std::string& error) {
+Result add_internal_child(const BinaryBvh& binary, uint32_t binary_node, uint32_t parent, int slot, WideBvh& out,
+                        uint32_t& child) {
     if (out.nodes.size() >= size_t(kInvalidIndex)) {
-        error = "collapse: too many wide nodes";
-        return false;
+        return Result::fail(Status::kInvalidArgument, 0, "collapse: too many wide nodes");
     }
     child = uint32_t(out.nodes.size());
     out.nodes.emplace_back();
@@ -146,32 +139,29 @@ bool add_internal_child(const BinaryBvh& binary, uint32_t binary_node, uint32_t 
     s.kind = WideChild::kInternal;
     s.box = binary.nodes[binary_node].box;
     s.node = child;
-    return true;
+    return Result::success();
 }
 
 }  // namespace detail
 
-bool collapse_wide(const BinaryBvh& binary, const CollapseConfig& config, WideBvh& out, std::string& error,
+Result collapse_wide(const BinaryBvh& binary, const CollapseConfig& config, WideBvh& out,
                    Progress* progress) {
     out = WideBvh{};
     if (config.max_leaf < 1 || config.max_leaf > kMaxLeafTriangles) {
-        error = "collapse: max_leaf must be 1.." + std::to_string(kMaxLeafTriangles);
-        return false;
+        return Result::fail(Status::kInvalidArgument, 0,
+                            "collapse: max_leaf must be 1.." + std::to_string(kMaxLeafTriangles));
     }
     if (!(config.cost_node >= 0.0f) || !(config.cost_prim >= 0.0f) || !std::isfinite(config.cost_node) ||
-        !std::isfinite(config.cost_prim)) {
-        error = "collapse: cost model constants must be finite and >= 0";
-        return false;
-    }
+        !std::isfinite(config.cost_prim))
+        return Result::fail(Status::kInvalidArgument, 0, "collapse: cost model constants must be finite and >= 0");
     std::vector<uint32_t> ref_count;
-    if (!detail::check_binary(binary, ref_count, error)) return false;
+    if (Result r = detail::check_binary(binary, ref_count); !r.ok()) return r;
     out.binary_leaf_ref.assign(binary.nodes.size(), kInvalidIndex);
     switch (config.kind) {
-        case kCollapseOptimal: return detail::collapse_optimal(binary, config, ref_count, out, error, progress);
-        case kCollapseGreedy: return detail::collapse_greedy(binary, config, ref_count, out, error, progress);
+        case kCollapseOptimal: return detail::collapse_optimal(binary, config, ref_count, out, progress);
+        case kCollapseGreedy: return detail::collapse_greedy(binary, config, ref_count, out, progress);
     }
-    error = "collapse: unknown collapse kind";
-    return false;
+    return Result::fail(Status::kInvalidArgument, 0, "collapse: unknown collapse kind");
 }
 
 }  // namespace cwbvh::compiler

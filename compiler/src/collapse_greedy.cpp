@@ -9,8 +9,8 @@
 
 namespace cwbvh::compiler::detail {
 
-bool collapse_greedy(const BinaryBvh& binary, const CollapseConfig& config,
-                     const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error,
+Result collapse_greedy(const BinaryBvh& binary, const CollapseConfig& config,
+                     const std::vector<uint32_t>& ref_count, WideBvh& out,
                      Progress* progress) {
     const uint32_t max_leaf = uint32_t(config.max_leaf);
     // Progress, one per binary node: every node is the binary node of a wide
@@ -65,11 +65,11 @@ bool collapse_greedy(const BinaryBvh& binary, const CollapseConfig& config,
                 continue;
             }
             uint32_t child = 0;
-            if (!add_internal_child(binary, m, w.wide, c, out, child, error)) return false;
+            if (Result r = add_internal_child(binary, m, w.wide, c, out, child); !r.ok()) return r;
             work.push_back({m, child});
         }
     }
-    return true;
+    return Result::success();
 }
 
 }  // namespace cwbvh::compiler::detail

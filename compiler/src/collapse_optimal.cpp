@@ -263,8 +263,8 @@ int wide_roots(const BinaryBvh& binary, const std::vector<Decision>& dp, uint32_
 
 }  // namespace
 
-bool collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
-                      const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error,
+Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
+                      const std::vector<uint32_t>& ref_count, WideBvh& out,
                       Progress* progress) {
     std::vector<Decision> dp(binary.nodes.size());
     if (!run_dp_parallel(binary, config, ref_count, dp, progress)) {
@@ -307,7 +307,7 @@ bool collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
     if (binary.nodes[0].is_leaf()) {
         // Root forced internal: one wide leaf child holding the single reference.
         out.nodes[0].slots[0] = make_wide_leaf(binary, 0, out);
-        return true;
+        return Result::success();
     }
     work.push_back({0, 0});
     uint32_t roots[kWidth];
@@ -323,7 +323,7 @@ bool collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
                 triangles += out.nodes[w.wide].slots[c].ref_count;
             } else {
                 uint32_t child = 0;
-                if (!add_internal_child(binary, m, w.wide, c, out, child, error)) return false;
+                if (Result r = add_internal_child(binary, m, w.wide, c, out, child); !r.ok()) return r;
                 work.push_back({m, child});
             }
         }
@@ -331,7 +331,7 @@ bool collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
         assert(triangles <= uint32_t(kMaxNodeTriangles));
         (void)triangles;
     }
-    return true;
+    return Result::success();
 }
 
 }  // namespace cwbvh::compiler::detail

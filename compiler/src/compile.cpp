@@ -74,24 +74,26 @@ private:
 };
 
 
-bool compile_phases(const CompileOptions& options, CompileStats& stats, std::string& error,
-                    const PhaseCallback& on_phase, Progress* progress) {
+Result compile_phases(const CompileOptions& options, CompileStats& stats, const PhaseCallback& on_phase,
+                      Progress* progress) {
     PhaseTimer timer(stats, on_phase, progress);
 
     Scene scene;
+    Result r;
     if (!timer.run("import", 0, [&] {
             ImportOptions import_options;
-            return import_scene(options.inputs, import_options, scene, error, stats.warnings);
+            r = import_scene(options.inputs, import_options, scene, stats.warnings);
+            return r.ok();
         }))
-        return false;
+        return r;
     stats.input_triangles = scene.input_triangles;
     stats.dropped_triangles = scene.dropped;
     stats.skipped_primitives = scene.skipped_primitives;
     stats.triangles = scene.triangle_count();
     if (scene.triangle_count() == 0) {
-        error = options.inputs.front() + (options.inputs.size() > 1 ? " (and others)" : "") +
-                ": no triangles left to compile";
-        return false;
+        return Result::fail(Status::kBadInput, 0,
+                            options.inputs.front() + (options.inputs.size() > 1 ? " (and others)" : "") +
+                                ": no triangles left to compile");
     }
 
     BinaryBvh binary;
@@ -101,10 +103,10 @@ bool compile_phases(const CompileOptions& options, CompileStats& stats, std::str
     sbvh_config.max_reference_growth = options.max_reference_growth;
     const bool embree = options.builder == kBuilderEmbree;
     if (!timer.run(embree ? "embree" : "sbvh", embree ? 0 : scene.triangle_count(), [&] {
-            return embree ? build_embree(scene, sbvh_config, binary, error)
-                          : build_sbvh(scene, sbvh_config, binary, error, progress);
+            r = embree ? build_embree(scene, sbvh_config, binary) : build_sbvh(scene, sbvh_config, binary, progress);
+            return r.ok();
         }))
-        return false;
+        return r;
     stats.references = binary.references;
     stats.spatial_splits = binary.spatial_splits;
     stats.binary_nodes = binary.nodes.size();
@@ -122,7 +124,7 @@ bool compile_phases(const CompileOptions& options, CompileStats& stats, std::str
         return timer.run(name, units, body);
     };
     EmitResult emitted;
-    if (!compile_binary(scene, binary, core, emitted, error, run, progress)) return false;
+    if (r = compile_binary(scene, binary, core, emitted, run, progress); !r.ok()) return r;
     stats.sah_binary = emitted.build_info.sah_binary;
     stats.wide_nodes = emitted.wide_nodes;
     stats.wide_depth = emitted.wide_depth;
@@ -130,24 +132,25 @@ bool compile_phases(const CompileOptions& options, CompileStats& stats, std::str
     stats.max_leaf_triangles = emitted.max_leaf_triangles;
     stats.sah_wide = emitted.sah_wide;
     if (!timer.run("write", 0, [&] {
-            return write_scene(scene, emitted, options.output, stats.bytes, stats.file_bytes, error);
+            r = write_scene(scene, emitted, options.output, stats.bytes, stats.file_bytes);
+            return r.ok();
         }))
-        return false;
+        return r;
 
     stats.peak_rss_bytes = peak_rss_bytes();
-    return true;
+    return Result::success();
 }
 
 }  // namespace
 
-bool compile(const CompileOptions& options, CompileStats& stats, std::string& error, const PhaseCallback& on_phase,
-             Progress* progress) {
-    if (options.threads <= 0) return compile_phases(options, stats, error, on_phase, progress);
+Result compile(const CompileOptions& options, CompileStats& stats, const PhaseCallback& on_phase,
+              Progress* progress) {
+    if (options.threads <= 0) return compile_phases(options, stats, on_phase, progress);
     // Every parallel phase (SBVH, slots, ...) runs with at most `threads` threads.
     tbb::task_arena arena(options.threads);
-    bool ok = false;
-    arena.execute([&] { ok = compile_phases(options, stats, error, on_phase, progress); });
-    return ok;
+    Result r;
+    arena.execute([&] { r = compile_phases(options, stats, on_phase, progress); });
+    return r;
 }
 
 }  // namespace cwbvh::compiler

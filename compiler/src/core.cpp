@@ -14,8 +14,8 @@ bool run_phase(const PhaseRunner& run, const char* name, uint64_t units, const s
 
 }  // namespace
 
-bool compile_binary(const Scene& scene, BinaryBvh& binary, const CoreOptions& options, EmitResult& out,
-                    std::string& error, const PhaseRunner& run, Progress* progress) {
+Result compile_binary(const Scene& scene, BinaryBvh& binary, const CoreOptions& options, EmitResult& out,
+                      const PhaseRunner& run, Progress* progress) {
     EmitInput emit;
     emit.options = &options.emit;
     emit.scene = &scene;
@@ -26,14 +26,17 @@ bool compile_binary(const Scene& scene, BinaryBvh& binary, const CoreOptions& op
     emit.sah_binary = report_sah_binary(binary);
 
     WideBvh wide;
-    if (!run_phase(run, "collapse", binary.nodes.size(),
-                   [&] { return collapse_wide(binary, options.collapse, wide, error, progress); }))
-        return false;
+    Result r;
+    if (!run_phase(run, "collapse", binary.nodes.size(), [&] {
+            r = collapse_wide(binary, options.collapse, wide, progress);
+            return r.ok();
+        }))
+        return r;
     if (!run_phase(run, "slots", wide.nodes.size(), [&] {
             assign_slots(wide, progress);
             return true;
         }))
-        return false;
+        return r;
 
     // The binary tree is only needed again for the optional BVH2/BV2L section;
     // without it, it is the largest structure alive (36 bytes per node).
@@ -41,21 +44,25 @@ bool compile_binary(const Scene& scene, BinaryBvh& binary, const CoreOptions& op
     if (!keep_binary) BinaryBvh{}.nodes.swap(binary.nodes);
     emit.binary = keep_binary ? &binary : nullptr;
     emit.wide = &wide;
-    return run_phase(run, "encode", 0, [&] { return encode_scene(emit, out, error); });
+    run_phase(run, "encode", 0, [&] {
+        r = encode_scene(emit, out);
+        return r.ok();
+    });
+    return r;
 }
 
-bool compile_scene(const Scene& scene, const CoreOptions& options, EmitResult& out, std::string& error) {
+Result compile_scene(const Scene& scene, const CoreOptions& options, EmitResult& out) {
     if (scene.triangle_count() == 0) {
         EmitInput emit;
         emit.options = &options.emit;
         emit.scene = &scene;
         emit.collapse = &options.collapse;
         emit.sbvh = &options.sbvh;
-        return encode_scene(emit, out, error);
+        return encode_scene(emit, out);
     }
     BinaryBvh binary;
-    if (!build_sbvh(scene, options.sbvh, binary, error)) return false;
-    return compile_binary(scene, binary, options, out, error);
+    if (Result r = build_sbvh(scene, options.sbvh, binary); !r.ok()) return r;
+    return compile_binary(scene, binary, options, out);
 }
 
 }  // namespace cwbvh::compiler

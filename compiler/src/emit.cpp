@@ -71,15 +71,14 @@ Aabb scene_box(const Scene& scene) {
     return box;
 }
 
-bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error) {
+Result encode_scene(const EmitInput& in, EmitResult& out) {
     const EmitOptions& options = *in.options;
     const bool bvh2 = options.bvh2 != Bvh2Section::kNone;
     out.bvh2_leaf_ranges = options.bvh2 == Bvh2Section::kLeafRanges;
     out.keep_mesh = options.keep_mesh;
     if (!in.wide) {
         if (in.scene->triangle_count() != 0) {
-            error = "internal error: encode without a wide tree";
-            return false;
+            return Result::fail(Status::kInternal, 0, "internal error: encode without a wide tree");
         }
         // The empty scene (spec 3.2, rule 1): a root without used slots. Its
         // exponents are never decoded; 127 (scale 1) is as good as any.
@@ -88,32 +87,37 @@ bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error) {
         out.tree = EncodedTree{};
         out.tree.nodes.push_back(root);
     } else {
-        if (!encode_cwbvh(*in.wide, *in.scene, out.tree, error, in.collapse->cost_node, in.collapse->cost_prim))
-            return false;
-        if (options.verify && !verify_encoded(out.tree, *in.wide, *in.scene, error)) {
-            error = "internal error: encoded tree failed verification: " + error;
-            return false;
+        if (Result r = encode_cwbvh(*in.wide, *in.scene, out.tree, in.collapse->cost_node, in.collapse->cost_prim);
+            !r.ok())
+            return r;
+        if (options.verify) {
+            if (Result r = verify_encoded(out.tree, *in.wide, *in.scene); !r.ok())
+                return Result::fail(Status::kInternal, 0,
+                                    "internal error: encoded tree failed verification: " + r.message);
         }
         if (bvh2 && !in.binary) {
-            error = "internal error: --keep-sbvh without the binary tree";
-            return false;
+            return Result::fail(Status::kInternal, 0, "internal error: --keep-sbvh without the binary tree");
         }
-        if (bvh2 && !encode_bvh2(*in.binary, *in.wide, out.tree, out.tree.bvh2, error, out.bvh2_leaf_ranges))
-            return false;
+        if (bvh2) {
+            if (Result r = encode_bvh2(*in.binary, *in.wide, out.tree, out.tree.bvh2, out.bvh2_leaf_ranges); !r.ok())
+                return r;
+        }
     }
 
     out.wide_depth = wide_tree_depth(out.tree.nodes);
     if (out.wide_depth > kMaxWideDepth) {
-        error = "the 8-wide tree is " + std::to_string(out.wide_depth) + " levels deep; the format allows " +
-                std::to_string(kMaxWideDepth) + " (the traversal stack's bound)";
-        return false;
+        return Result::fail(Status::kBadInput, 0,
+                            "the 8-wide tree is " + std::to_string(out.wide_depth) +
+                                " levels deep; the format allows " + std::to_string(kMaxWideDepth) +
+                                " (the traversal stack's bound)");
     }
     if (bvh2 && !out.tree.bvh2.empty()) {
         out.bvh2_depth = bvh2_tree_depth(out.tree.bvh2);
         if (out.bvh2_depth > kMaxBvh2Depth) {
-            error = "the binary SBVH is " + std::to_string(out.bvh2_depth) + " levels deep; the BV2L section allows " +
-                    std::to_string(kMaxBvh2Depth) + " (the baseline kernel's stack); compile without --keep-sbvh";
-            return false;
+            return Result::fail(Status::kBadInput, 0,
+                                "the binary SBVH is " + std::to_string(out.bvh2_depth) +
+                                    " levels deep; the BV2L section allows " + std::to_string(kMaxBvh2Depth) +
+                                    " (the baseline kernel's stack); compile without --keep-sbvh");
         }
     }
     out.wide_nodes = out.tree.nodes.size();
@@ -133,18 +137,18 @@ bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error) {
     if (options.verify) {
         const std::vector<SourceRef>& sources = in.scene->sources;
         if (source_range_total(out.source_ranges) != sources.size()) {
-            error = "internal error: PMAP ranges do not cover the stored triangles";
-            return false;
+            return Result::fail(Status::kInternal, 0, "internal error: PMAP ranges do not cover the stored triangles");
         }
         for (size_t i = 0; i < sources.size(); ++i) {
             const std::optional<SourceRef> r = find_source(out.source_ranges, uint32_t(i));
             if (!r || std::memcmp(&*r, &sources[i], sizeof(SourceRef)) != 0) {
-                error = "internal error: PMAP range decodes stored triangle " + std::to_string(i) + " wrongly";
-                return false;
+                return Result::fail(
+                    Status::kInternal, 0,
+                    "internal error: PMAP range decodes stored triangle " + std::to_string(i) + " wrongly");
             }
         }
     }
-    return true;
+    return Result::success();
 }
 
 SceneSections scene_sections(const Scene& scene, const EmitResult& e) {
@@ -165,34 +169,26 @@ SceneSections scene_sections(const Scene& scene, const EmitResult& e) {
     return s;
 }
 
-bool write_scene(const Scene& scene, const EmitResult& e, const std::string& path,
-                 std::vector<std::pair<std::string, uint64_t>>& bytes, uint64_t& file_bytes, std::string& error) {
+Result write_scene(const Scene& scene, const EmitResult& e, const std::string& path,
+                 std::vector<std::pair<std::string, uint64_t>>& bytes, uint64_t& file_bytes) {
     Writer writer;
     add_scene_sections(writer, scene_sections(scene, e));
     FileHeader header{};
     std::vector<SectionEntry> table;
-    if (Result r = writer.layout(header, table); !r.ok()) {
-        error = path + ": " + r.describe();
-        return false;
-    }
-    if (Result r = writer.write_file(path); !r.ok()) {
-        error = path + ": " + r.describe();
-        return false;
-    }
+    if (Result r = writer.layout(header, table); !r.ok())
+        return Result::fail(r.status, r.rule, path + ": " + r.describe());
+    if (Result r = writer.write_file(path); !r.ok()) return Result::fail(r.status, r.rule, path + ": " + r.describe());
     bytes.clear();
     for (const auto& s : table) bytes.emplace_back(section_name(s.type), s.size);
     file_bytes = header.file_size;
-    return true;
+    return Result::success();
 }
 
-bool scene_bytes(const Scene& scene, const EmitResult& e, std::vector<uint8_t>& out, std::string& error) {
+Result scene_bytes(const Scene& scene, const EmitResult& e, std::vector<uint8_t>& out) {
     Writer writer;
     add_scene_sections(writer, scene_sections(scene, e));
-    if (Result r = writer.to_bytes(out); !r.ok()) {
-        error = r.describe();
-        return false;
-    }
-    return true;
+    if (Result r = writer.to_bytes(out); !r.ok()) return Result::fail(r.status, r.rule, r.describe());
+    return Result::success();
 }
 
 }  // namespace cwbvh::compiler

@@ -27,61 +27,56 @@ uint8_t child_boxes(const WideNode& node, Aabb (&boxes)[kWidth]) {
     return used;
 }
 
-bool check_wide(const WideBvh& wide, std::string& error) {
-    if (wide.nodes.empty()) {
-        error = "encode: wide BVH has no nodes";
-        return false;
-    }
+Result check_wide(const WideBvh& wide) {
+    if (wide.nodes.empty()) return Result::fail(Status::kInvalidArgument, 0, "encode: wide BVH has no nodes");
     if (wide.nodes.size() >= size_t(kInvalidIndex) || wide.leaf_refs.size() >= size_t(kInvalidIndex)) {
-        error = "encode: wide BVH too large for 32-bit indices";
-        return false;
+        return Result::fail(Status::kInvalidArgument, 0, "encode: wide BVH too large for 32-bit indices");
     }
     std::vector<uint8_t> parents(wide.nodes.size(), 0);
     for (size_t i = 0; i < wide.nodes.size(); ++i) {
         const WideNode& node = wide.nodes[i];
         if (node.child_count() == 0) {
-            error = "encode: wide node " + std::to_string(i) + " has no children";
-            return false;
+            return Result::fail(Status::kInvalidArgument, 0,
+                                "encode: wide node " + std::to_string(i) + " has no children");
         }
         uint32_t triangles = 0;
         for (const WideChild& ch : node.slots) {
             if (ch.kind == WideChild::kInternal) {
                 if (ch.node == 0 || ch.node >= wide.nodes.size() || parents[ch.node]++ != 0) {
-                    error = "encode: wide node " + std::to_string(i) + " has a bad or shared child index";
-                    return false;
+                    return Result::fail(Status::kInvalidArgument, 0,
+                                        "encode: wide node " + std::to_string(i) + " has a bad or shared child index");
                 }
             } else if (ch.kind == WideChild::kLeaf) {
                 if (ch.ref_count < 1 || ch.ref_count > uint32_t(kMaxLeafTriangles) ||
-                    ch.first_ref > wide.leaf_refs.size() || ch.ref_count > wide.leaf_refs.size() - ch.first_ref) {
-                    error = "encode: wide node " + std::to_string(i) + " has a bad leaf";
-                    return false;
-                }
+                    ch.first_ref > wide.leaf_refs.size() || ch.ref_count > wide.leaf_refs.size() - ch.first_ref)
+                    return Result::fail(Status::kInvalidArgument, 0,
+                                        "encode: wide node " + std::to_string(i) + " has a bad leaf");
                 triangles += ch.ref_count;
             } else if (ch.kind != WideChild::kEmpty) {
-                error = "encode: wide node " + std::to_string(i) + " has a bad slot kind";
-                return false;
+                return Result::fail(Status::kInvalidArgument, 0,
+                                    "encode: wide node " + std::to_string(i) + " has a bad slot kind");
             }
         }
         if (triangles > uint32_t(kMaxNodeTriangles)) {
-            error = "encode: wide node " + std::to_string(i) + " has more than 24 triangles";
-            return false;
+            return Result::fail(Status::kInvalidArgument, 0,
+                                "encode: wide node " + std::to_string(i) + " has more than 24 triangles");
         }
     }
     for (size_t i = 1; i < wide.nodes.size(); ++i) {
         if (parents[i] != 1) {
-            error = "encode: wide node " + std::to_string(i) + " is unreachable";
-            return false;
+            return Result::fail(Status::kInvalidArgument, 0,
+                                "encode: wide node " + std::to_string(i) + " is unreachable");
         }
     }
-    return true;
+    return Result::success();
 }
 
 }  // namespace
 
-bool encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, std::string& error, float c_node,
+Result encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, float c_node,
                   float c_prim) {
     out = EncodedTree{};
-    if (!check_wide(wide, error)) return false;
+    if (Result r = check_wide(wide); !r.ok()) return r;
     out.nodes.reserve(wide.nodes.size());
     out.node_to_wide.reserve(wide.nodes.size());
     out.triangles.reserve(wide.leaf_refs.size());
@@ -124,8 +119,8 @@ bool encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, std
             if (ch.kind != WideChild::kLeaf) continue;
             if (!have_leaf) {
                 if (out.triangles.size() >= size_t(kInvalidIndex) - kMaxNodeTriangles) {
-                    error = "encode: too many triangle records for 32-bit indices";
-                    return false;
+                    return Result::fail(Status::kInvalidArgument, 0,
+                                        "encode: too many triangle records for 32-bit indices");
                 }
                 cn.tri_base = uint32_t(out.triangles.size());
                 have_leaf = true;
@@ -138,19 +133,19 @@ bool encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, std
                 const uint32_t ref = ch.first_ref + k;
                 const uint32_t prim = wide.leaf_refs[ref];
                 if (out.ref_to_tri[ref] != kInvalidIndex) {
-                    error = "encode: leaf reference " + std::to_string(ref) + " used by two leaves";
-                    return false;
+                    return Result::fail(Status::kInvalidArgument, 0,
+                                        "encode: leaf reference " + std::to_string(ref) + " used by two leaves");
                 }
                 if (prim >= scene.triangle_count()) {
-                    error = "encode: triangle id " + std::to_string(prim) + " out of range";
-                    return false;
+                    return Result::fail(Status::kInvalidArgument, 0,
+                                        "encode: triangle id " + std::to_string(prim) + " out of range");
                 }
                 TriangleRecord t{};
                 const auto& idx = scene.indices[prim];
                 for (int v = 0; v < 3; ++v) {
                     if (idx[v] >= scene.vertices.size()) {
-                        error = "encode: triangle " + std::to_string(prim) + " has a bad vertex index";
-                        return false;
+                        return Result::fail(Status::kInvalidArgument, 0,
+                                            "encode: triangle " + std::to_string(prim) + " has a bad vertex index");
                     }
                 }
                 for (int a = 0; a < 3; ++a) {
@@ -169,8 +164,8 @@ bool encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, std
     }
     for (size_t r = 0; r < out.ref_to_tri.size(); ++r) {
         if (out.ref_to_tri[r] == kInvalidIndex) {
-            error = "encode: leaf reference " + std::to_string(r) + " is in no leaf";
-            return false;
+            return Result::fail(Status::kInvalidArgument, 0,
+                                "encode: leaf reference " + std::to_string(r) + " is in no leaf");
         }
     }
     // Quantization, in parallel: each node's exponents and child boxes depend
@@ -181,8 +176,7 @@ bool encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, std
         for (size_t i = r.begin(); i != r.end(); ++i) {
             Aabb boxes[kWidth];
             const uint8_t used = child_boxes(wide.nodes[out.node_to_wide[i]], boxes);
-            std::string ignored;
-            if (!quantize_node(boxes, used, out.nodes[i], ignored)) {
+            if (!quantize_node(boxes, used, out.nodes[i]).ok()) {
                 size_t seen = first_bad.load();
                 while (i < seen && !first_bad.compare_exchange_weak(seen, i)) {}
             }
@@ -192,13 +186,14 @@ bool encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, std
         Aabb boxes[kWidth];
         const uint8_t used = child_boxes(wide.nodes[out.node_to_wide[bad]], boxes);
         CwbvhNode scratch = out.nodes[bad];
-        if (quantize_node(boxes, used, scratch, error)) error = "encode: quantization failed";  // again, for its message
-        error += " (wide node " + std::to_string(out.node_to_wide[bad]) + ")";
-        return false;
+        Result r = quantize_node(boxes, used, scratch);  // again, for its message
+        if (r.ok()) r = Result::fail(Status::kInternal, 0, "encode: quantization failed");
+        r.message += " (wide node " + std::to_string(out.node_to_wide[bad]) + ")";
+        return r;
     }
     out.avg_children = double(children) / double(out.nodes.size());
     out.sah_wide = sah_cost_wide(wide, c_node, c_prim);
-    return true;
+    return Result::success();
 }
 
 }  // namespace cwbvh::compiler

@@ -29,37 +29,37 @@ struct Bvh2Leaf {
 };
 
 /// One entry per wide leaf; ref_leaf[r] = the wide leaf holding WideBvh::leaf_refs[r].
-bool wide_leaves(const WideBvh& wide, const EncodedTree& tree, std::vector<Bvh2Leaf>& leaves,
-                 std::vector<uint32_t>& ref_leaf, std::string& error) {
+Result wide_leaves(const WideBvh& wide, const EncodedTree& tree, std::vector<Bvh2Leaf>& leaves,
+                 std::vector<uint32_t>& ref_leaf) {
     ref_leaf.assign(wide.leaf_refs.size(), kInvalidIndex);
     for (const WideNode& node : wide.nodes) {
         for (const WideChild& ch : node.slots) {
             if (ch.kind != WideChild::kLeaf) continue;
             const uint32_t id = uint32_t(leaves.size());
             if (ch.ref_count < 1 || ch.ref_count > kMaxBvh2LeafTriangles || ch.first_ref > ref_leaf.size() ||
-                ch.ref_count > ref_leaf.size() - ch.first_ref) {
-                error = "bvh2: wide leaf " + std::to_string(id) + " has a bad reference range";
-                return false;
-            }
+                ch.ref_count > ref_leaf.size() - ch.first_ref)
+                return Result::fail(Status::kInvalidArgument, 0,
+                                    "bvh2: wide leaf " + std::to_string(id) + " has a bad reference range");
             const uint32_t first =
                 ch.first_ref < tree.ref_to_tri.size() ? tree.ref_to_tri[ch.first_ref] : kInvalidIndex;
             for (uint32_t k = 0; k < ch.ref_count; ++k) {
                 const uint32_t r = ch.first_ref + k;
                 // encode_cwbvh gives a leaf's triangles consecutive records (spec 3.1 layout).
                 if (r >= tree.ref_to_tri.size() || first > uint32_t(INT32_MAX) - k || tree.ref_to_tri[r] != first + k) {
-                    error = "bvh2: the records of wide leaf " + std::to_string(id) + " are not consecutive in TRIS";
-                    return false;
+                    return Result::fail(
+                        Status::kInvalidArgument, 0,
+                        "bvh2: the records of wide leaf " + std::to_string(id) + " are not consecutive in TRIS");
                 }
                 if (ref_leaf[r] != kInvalidIndex) {
-                    error = "bvh2: reference " + std::to_string(r) + " is in two wide leaves";
-                    return false;
+                    return Result::fail(Status::kInvalidArgument, 0,
+                                        "bvh2: reference " + std::to_string(r) + " is in two wide leaves");
                 }
                 ref_leaf[r] = id;
             }
             leaves.push_back({first, ch.ref_count});
         }
     }
-    return true;
+    return Result::success();
 }
 
 void set_box(Bvh2Node& n, int c, const Aabb& b) {
@@ -74,23 +74,22 @@ void set_box(Bvh2Node& n, int c, const Aabb& b) {
 
 }  // namespace
 
-bool encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree& tree, std::vector<Bvh2Node>& out,
-                 std::string& error, bool leaf_ranges) {
+Result encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree& tree, std::vector<Bvh2Node>& out,
+                   bool leaf_ranges) {
     out.clear();
     std::vector<uint32_t> ref_count;
-    if (!detail::check_binary(binary, ref_count, error)) return false;
+    if (Result r = detail::check_binary(binary, ref_count); !r.ok()) return r;
     if (wide.binary_leaf_ref.size() != binary.nodes.size()) {
-        error = "bvh2: the wide BVH was not collapsed from this binary BVH";
-        return false;
+        return Result::fail(Status::kInvalidArgument, 0, "bvh2: the wide BVH was not collapsed from this binary BVH");
     }
     if (leaf_ranges ? tree.triangles.size() > kMaxBvh2LeafTris : tree.triangles.size() > size_t(INT32_MAX)) {
-        error = leaf_ranges ? "bvh2: more than 2^29 triangle records (the limit of the BV2L section)"
-                            : "bvh2: more than 2^31 - 1 triangle records (the limit of the BVH2 section)";
-        return false;
+        return Result::fail(Status::kInvalidArgument, 0,
+                            leaf_ranges ? "bvh2: more than 2^29 triangle records (the limit of the BV2L section)"
+                                        : "bvh2: more than 2^31 - 1 triangle records (the limit of the BVH2 section)");
     }
     std::vector<Bvh2Leaf> leaves;
     std::vector<uint32_t> ref_leaf;
-    if (!wide_leaves(wide, tree, leaves, ref_leaf, error)) return false;
+    if (Result r = wide_leaves(wide, tree, leaves, ref_leaf); !r.ok()) return r;
 
     // group[i]: the BVH2 leaf binary node i becomes, or kInvalidIndex if i stays an
     // internal BVH2 node (or lies below a leaf). BV2L: the wide leaf every binary
@@ -105,8 +104,8 @@ bool encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree
         if (b.is_leaf()) {
             const uint32_t r = wide.binary_leaf_ref[i];
             if (r >= ref_leaf.size() || ref_leaf[r] == kInvalidIndex) {
-                error = "bvh2: binary leaf " + std::to_string(i) + " is in no wide leaf";
-                return false;
+                return Result::fail(Status::kInvalidArgument, 0,
+                                    "bvh2: binary leaf " + std::to_string(i) + " is in no wide leaf");
             }
             if (leaf_ranges) {
                 group[i] = ref_leaf[r];
@@ -140,8 +139,7 @@ bool encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree
         for (size_t i = 0; i < n_binary; ++i) {
             if (group[i] != kInvalidIndex) continue;
             if (count == uint32_t(INT32_MAX)) {
-                error = "bvh2: too many nodes for 31-bit indices";
-                return false;
+                return Result::fail(Status::kInvalidArgument, 0, "bvh2: too many nodes for 31-bit indices");
             }
             index[i] = count++;
         }
@@ -167,11 +165,11 @@ bool encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree
     }
     for (size_t id = 0; id < leaves.size(); ++id) {
         if (leaves[id].cuts != 1) {
-            error = "bvh2: leaf " + std::to_string(id) + " is not one binary subtree";
-            return false;
+            return Result::fail(Status::kInvalidArgument, 0,
+                                "bvh2: leaf " + std::to_string(id) + " is not one binary subtree");
         }
     }
-    return true;
+    return Result::success();
 }
 
 }  // namespace cwbvh::compiler

@@ -9,21 +9,18 @@
 namespace cwbvh::compiler {
 
 namespace {
-bool fail(std::string& error, const std::string& what, size_t node) {
-    error = "verify: node " + std::to_string(node) + ": " + what;
-    return false;
+Result fail(const std::string& what, size_t node) {
+    return Result::fail(Status::kInternal, 0, "verify: node " + std::to_string(node) + ": " + what);
 }
 }  // namespace
 
-bool verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene& scene, std::string& error) {
+Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene& scene) {
     const size_t n = tree.nodes.size();
     if (n == 0 || tree.node_to_wide.size() != n || n != wide.nodes.size()) {
-        error = "verify: node count mismatch";
-        return false;
+        return Result::fail(Status::kInternal, 0, "verify: node count mismatch");
     }
     if (tree.triangles.size() != wide.leaf_refs.size() || tree.ref_to_tri.size() != wide.leaf_refs.size()) {
-        error = "verify: triangle record count mismatch";
-        return false;
+        return Result::fail(Status::kInternal, 0, "verify: triangle record count mismatch");
     }
     std::vector<uint8_t> node_seen(n, 0), tri_seen(tree.triangles.size(), 0), prim_seen(scene.triangle_count(), 0);
     std::vector<uint32_t> stack{0};
@@ -32,73 +29,73 @@ bool verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene& s
         const uint32_t i = stack.back();
         stack.pop_back();
         const CwbvhNode& cn = tree.nodes[i];
-        if (tree.node_to_wide[i] >= wide.nodes.size()) return fail(error, "bad wide node mapping", i);
+        if (tree.node_to_wide[i] >= wide.nodes.size()) return fail("bad wide node mapping", i);
         const WideNode& wn = wide.nodes[tree.node_to_wide[i]];
         for (int a = 0; a < 3; ++a)
-            if (cn.e[a] < 1 || cn.e[a] > 254) return fail(error, "exponent out of range", i);
+            if (cn.e[a] < 1 || cn.e[a] > 254) return fail("exponent out of range", i);
         for (int s = 0; s < kWidth; ++s) {
             const WideChild& ch = wn.slots[s];
             const uint8_t m = cn.meta[s];
             const bool bit = (cn.imask >> s) & 1;
             if (ch.kind == WideChild::kEmpty) {
-                if (m != kMetaEmpty || bit) return fail(error, "empty slot " + std::to_string(s) + " not empty", i);
+                if (m != kMetaEmpty || bit) return fail("empty slot " + std::to_string(s) + " not empty", i);
                 continue;
             }
             const Aabb dec = decode_child_box(cn, s);
             for (int a = 0; a < 3; ++a) {
-                if (cn.q_lo[a][s] > cn.q_hi[a][s]) return fail(error, "inverted quantized box", i);
+                if (cn.q_lo[a][s] > cn.q_hi[a][s]) return fail("inverted quantized box", i);
                 if (!(dec.lo[a] <= ch.box.lo[a]) || !(dec.hi[a] >= ch.box.hi[a]))
-                    return fail(error, "slot " + std::to_string(s) + ": decoded box does not contain the child", i);
+                    return fail("slot " + std::to_string(s) + ": decoded box does not contain the child", i);
             }
             if (ch.kind == WideChild::kInternal) {
                 if (m != make_meta_internal(s) || !bit || !meta_is_internal(m))
-                    return fail(error, "bad internal meta/imask in slot " + std::to_string(s), i);
+                    return fail("bad internal meta/imask in slot " + std::to_string(s), i);
                 const uint32_t c = internal_child_index(cn, s);
-                if (c >= n || c <= i) return fail(error, "child index out of range", i);
-                if (node_seen[c]++) return fail(error, "child reached twice", i);
-                if (tree.node_to_wide[c] != ch.node) return fail(error, "child is not the wide child", i);
+                if (c >= n || c <= i) return fail("child index out of range", i);
+                if (node_seen[c]++) return fail("child reached twice", i);
+                if (tree.node_to_wide[c] != ch.node) return fail("child is not the wide child", i);
                 stack.push_back(c);
                 continue;
             }
             if (bit || !meta_is_leaf(m) || meta_leaf_count(m) != int(ch.ref_count))
-                return fail(error, "bad leaf meta/imask in slot " + std::to_string(s), i);
+                return fail("bad leaf meta/imask in slot " + std::to_string(s), i);
             const uint32_t off = uint32_t(meta_leaf_offset(m));
             if (off + ch.ref_count > uint32_t(kMaxNodeTriangles) ||
                 uint64_t(cn.tri_base) + off + ch.ref_count > tree.triangles.size())
-                return fail(error, "leaf triangles out of range", i);
+                return fail("leaf triangles out of range", i);
             for (uint32_t k = 0; k < ch.ref_count; ++k) {
                 const uint32_t t = cn.tri_base + off + k;
                 const uint32_t ref = ch.first_ref + k;
                 const TriangleRecord& rec = tree.triangles[t];
-                if (tri_seen[t]++) return fail(error, "triangle record " + std::to_string(t) + " used twice", i);
+                if (tri_seen[t]++) return fail("triangle record " + std::to_string(t) + " used twice", i);
                 if (tree.ref_to_tri[ref] != t || rec.prim != wide.leaf_refs[ref])
-                    return fail(error, "triangle record " + std::to_string(t) + " is not the leaf's", i);
+                    return fail("triangle record " + std::to_string(t) + " is not the leaf's", i);
                 if (rec.prim >= scene.triangle_count())
-                    return fail(error, "bad triangle record " + std::to_string(t), i);
+                    return fail("bad triangle record " + std::to_string(t), i);
                 const auto v = scene.triangle(rec.prim);
                 for (int a = 0; a < 3; ++a) {
                     if (rec.v0[a] != v[0][a] || rec.v1[a] != v[1][a] || rec.v2[a] != v[2][a])
-                        return fail(error, "triangle record " + std::to_string(t) + " has wrong vertices", i);
+                        return fail("triangle record " + std::to_string(t) + " has wrong vertices", i);
                 }
                 prim_seen[rec.prim] = 1;
             }
         }
     }
     for (size_t i = 0; i < n; ++i)
-        if (!node_seen[i]) return fail(error, "unreachable from the root", i);
+        if (!node_seen[i]) return fail("unreachable from the root", i);
     for (size_t t = 0; t < tri_seen.size(); ++t) {
         if (!tri_seen[t]) {
-            error = "verify: triangle record " + std::to_string(t) + " is in no leaf";
-            return false;
+            return Result::fail(Status::kInternal, 0,
+                                "verify: triangle record " + std::to_string(t) + " is in no leaf");
         }
     }
     for (size_t p = 0; p < prim_seen.size(); ++p) {
         if (!prim_seen[p]) {
-            error = "verify: stored triangle " + std::to_string(p) + " is in no leaf";
-            return false;
+            return Result::fail(Status::kInternal, 0,
+                                "verify: stored triangle " + std::to_string(p) + " is in no leaf");
         }
     }
-    return true;
+    return Result::success();
 }
 
 }  // namespace cwbvh::compiler

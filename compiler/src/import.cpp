@@ -23,10 +23,10 @@ std::string lower_extension(const std::string& path) {
 
 /// Magic first (a .glb or .drc under another name still loads), then the
 /// extension. Returns kUnknown with `error` set when the file cannot be read.
-Format detect(const std::string& path, std::string& error) {
+Format detect(const std::string& path, Result& error) {
     std::ifstream f(path, std::ios::binary);
     if (!f) {
-        error = "cannot open file";
+        error = Result::fail(Status::kIoError, 0, "cannot open file");
         return Format::kUnknown;
     }
     char magic[5] = {};
@@ -39,56 +39,54 @@ Format detect(const std::string& path, std::string& error) {
     if (ext == "glb") return Format::kGlb;
     if (ext == "drc") return Format::kDraco;
     if (ext == "obj" || ext == "ply" || ext == "off" || ext == "stl") return Format::kOpenMesh;
-    error = "unknown file type (expected .gltf, .glb, .obj, .ply, .off, .stl or .drc)";
+    error = Result::fail(Status::kBadInput, 0,
+                         "unknown file type (expected .gltf, .glb, .obj, .ply, .off, .stl or .drc)");
     return Format::kUnknown;
 }
 
-bool import_one(const std::string& path, const ImportOptions& options, RawInput& raw,
-                std::string& error, std::vector<std::string>& warnings) {
+Result import_one(const std::string& path, const ImportOptions& options, RawInput& raw,
+                  std::vector<std::string>& warnings) {
+    Result error;
     const Format format = detect(path, error);
     switch (format) {
         case Format::kGltf:
-        case Format::kGlb: return import_gltf(path, options, raw, error, warnings);
-        case Format::kDraco: return import_draco_file(path, raw, error);
-        case Format::kOpenMesh: return import_openmesh(path, options, raw, error, warnings);
+        case Format::kGlb: return import_gltf(path, options, raw, warnings);
+        case Format::kDraco: return import_draco_file(path, raw);
+        case Format::kOpenMesh: return import_openmesh(path, options, raw, warnings);
         case Format::kUnknown: break;
     }
-    return false;
+    return error;
 }
 
 }  // namespace
 
-bool import_scene(const std::vector<std::string>& paths, const ImportOptions& options,
-                  Scene& out, std::string& error, std::vector<std::string>& warnings) {
+Result import_scene(const std::vector<std::string>& paths, const ImportOptions& options, Scene& out,
+                    std::vector<std::string>& warnings) {
     out = Scene{};
-    error.clear();
-    if (paths.empty()) {
-        error = "no input files";
-        return false;
-    }
+    auto fail = [&out](Status status, std::string message) {
+        out = Scene{};
+        return Result::fail(status, 0, std::move(message));
+    };
+    if (paths.empty()) return fail(Status::kInvalidArgument, "no input files");
     try {
         for (size_t i = 0; i < paths.size(); ++i) {
             const std::string& path = paths[i];
             RawInput raw;
-            std::string what;
             std::vector<std::string> file_warnings;
-            const bool ok = import_one(path, options, raw, what, file_warnings);
+            const Result r = import_one(path, options, raw, file_warnings);
             for (const std::string& w : file_warnings) warnings.push_back(path + ": " + w);
-            if (!ok) {
-                error = path + ": " + (what.empty() ? "cannot be read" : what);
-                out = Scene{};
-                return false;
+            if (!r.ok()) {
+                const Status status = r.status == Status::kOk ? Status::kBadInput : r.status;
+                return fail(status, path + ": " + (r.message.empty() ? "cannot be read" : r.message));
             }
             const uint64_t before = out.triangle_count(), read_before = out.input_triangles;
             const auto dropped_before = out.dropped;
-            if (!clean_and_append(raw, uint32_t(i), out, what)) {
-                error = path + ": " + what;
-                out = Scene{};
-                return false;
+            if (const Result c = clean_and_append(raw, uint32_t(i), out); !c.ok()) {
+                return fail(c.status, path + ": " + c.message);
             }
             out.input_names.push_back(path);
             if (out.triangle_count() == before) {
-                error = path + ": no triangles";
+                std::string error = path + ": no triangles";
                 const uint64_t read = out.input_triangles - read_before;
                 if (read > 0) {
                     error += " (all " + std::to_string(read) + " dropped:";
@@ -99,20 +97,15 @@ bool import_scene(const std::vector<std::string>& paths, const ImportOptions& op
                     }
                     error += ")";
                 }
-                out = Scene{};
-                return false;
+                return fail(Status::kBadInput, error);
             }
         }
     } catch (const std::bad_alloc&) {
-        error = "out of memory while importing";
-        out = Scene{};
-        return false;
+        return fail(Status::kBadInput, "out of memory while importing");
     } catch (const std::exception& e) {
-        error = std::string("unexpected error while importing: ") + e.what();
-        out = Scene{};
-        return false;
+        return fail(Status::kBadInput, std::string("unexpected error while importing: ") + e.what());
     }
-    return true;
+    return Result::success();
 }
 
 }  // namespace cwbvh::compiler

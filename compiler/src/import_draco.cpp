@@ -10,47 +10,40 @@
 
 namespace cwbvh::compiler {
 
-bool decode_draco_mesh(const uint8_t* data, size_t size, int position_id,
+Result decode_draco_mesh(const uint8_t* data, size_t size, int position_id,
                        std::vector<Vec3>& vertices,
-                       std::vector<std::array<uint32_t, 3>>& triangles, std::string& error) {
+                       std::vector<std::array<uint32_t, 3>>& triangles) {
     vertices.clear();
     triangles.clear();
     try {
         draco::DecoderBuffer buffer;
         buffer.Init(reinterpret_cast<const char*>(data), size);
         auto type = draco::Decoder::GetEncodedGeometryType(&buffer);
-        if (!type.ok()) {
-            error = "Draco: " + type.status().error_msg_string();
-            return false;
-        }
+        if (!type.ok()) return Result::fail(Status::kBadInput, 0, "Draco: " + type.status().error_msg_string());
         if (type.value() != draco::TRIANGULAR_MESH) {
-            error = "Draco data is a point cloud, not a triangle mesh";
-            return false;
+            return Result::fail(Status::kBadInput, 0, "Draco data is a point cloud, not a triangle mesh");
         }
         draco::Decoder decoder;
         auto result = decoder.DecodeMeshFromBuffer(&buffer);
         if (!result.ok()) {
-            error = "Draco decode failed: " + result.status().error_msg_string();
-            return false;
+            return Result::fail(Status::kBadInput, 0, "Draco decode failed: " + result.status().error_msg_string());
         }
         const draco::Mesh& mesh = *result.value();
         const draco::PointAttribute* pos =
             position_id >= 0 ? mesh.GetAttributeByUniqueId(uint32_t(position_id))
                              : mesh.GetNamedAttribute(draco::GeometryAttribute::POSITION);
         if (pos == nullptr) {
-            error = "Draco data has no position attribute" +
-                    (position_id >= 0 ? " with id " + std::to_string(position_id) : std::string());
-            return false;
+            return Result::fail(Status::kBadInput, 0, "Draco data has no position attribute" +
+                    (position_id >= 0 ? " with id " + std::to_string(position_id) : std::string()));
         }
         if (pos->num_components() != 3) {
-            error = "Draco position attribute has " + std::to_string(pos->num_components()) +
-                    " components, expected 3";
-            return false;
+            return Result::fail(
+                Status::kBadInput, 0,
+                "Draco position attribute has " + std::to_string(pos->num_components()) + " components, expected 3");
         }
         const uint32_t num_points = mesh.num_points();
         if (!pos->is_mapping_identity() && pos->indices_map_size() < num_points) {
-            error = "Draco position attribute maps fewer points than the mesh has";
-            return false;
+            return Result::fail(Status::kBadInput, 0, "Draco position attribute maps fewer points than the mesh has");
         }
         vertices.resize(num_points);
         for (uint32_t i = 0; i < num_points; ++i) {
@@ -59,8 +52,8 @@ bool decode_draco_mesh(const uint8_t* data, size_t size, int position_id,
             // ConvertValue dequantizes (Draco's own quantization and normalized
             // integer attributes) to float.
             if (avi.value() >= pos->size() || !pos->ConvertValue<float>(avi, 3, v)) {
-                error = "Draco position of point " + std::to_string(i) + " cannot be read";
-                return false;
+                return Result::fail(Status::kBadInput, 0,
+                                    "Draco position of point " + std::to_string(i) + " cannot be read");
             }
             vertices[i] = {v[0], v[1], v[2]};
         }
@@ -70,37 +63,31 @@ bool decode_draco_mesh(const uint8_t* data, size_t size, int position_id,
             for (int k = 0; k < 3; ++k) {
                 const uint32_t v = face[k].value();
                 if (v >= num_points) {
-                    error = "Draco face " + std::to_string(f) + " has vertex index " +
-                            std::to_string(v) + " >= " + std::to_string(num_points);
-                    return false;
+                    return Result::fail(Status::kBadInput, 0, "Draco face " + std::to_string(f) + " has vertex index " +
+                            std::to_string(v) + " >= " + std::to_string(num_points));
                 }
                 triangles[f][k] = v;
             }
         }
     } catch (const std::bad_alloc&) {
-        error = "out of memory while decoding Draco data";
-        return false;
+        return Result::fail(Status::kBadInput, 0, "out of memory while decoding Draco data");
     } catch (const std::exception& e) {
-        error = std::string("Draco decode failed: ") + e.what();
-        return false;
+        return Result::fail(Status::kBadInput, 0, std::string("Draco decode failed: ") + e.what());
     }
-    return true;
+    return Result::success();
 }
 
-bool import_draco_file(const std::string& path, RawInput& out, std::string& error) {
+Result import_draco_file(const std::string& path, RawInput& out) {
     out = RawInput{};
     std::ifstream f(path, std::ios::binary);
-    if (!f) {
-        error = "cannot open file";
-        return false;
-    }
+    if (!f) return Result::fail(Status::kIoError, 0, "cannot open file");
     const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)),
                                      std::istreambuf_iterator<char>());
     RawPrimitive prim;
-    if (!decode_draco_mesh(bytes.data(), bytes.size(), -1, prim.vertices, prim.triangles, error))
-        return false;
+    if (Result r = decode_draco_mesh(bytes.data(), bytes.size(), -1, prim.vertices, prim.triangles); !r.ok())
+        return r;
     out.primitives.push_back(std::move(prim));
-    return true;
+    return Result::success();
 }
 
 }  // namespace cwbvh::compiler

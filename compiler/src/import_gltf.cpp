@@ -447,10 +447,10 @@ bool GltfReader::decode_primitive(size_t mesh, size_t prim, LocalPrimitive& lp, 
         const size_t length = model_.bufferViews[size_t(bv)].byteLength;
         if (!byte_range(bv, 0, 1, 1, length, name + " Draco data", view, error)) return false;
         std::vector<Vec3> verts;
-        std::string why;
-        if (!decode_draco_mesh(view.base, length, attrs.Get("POSITION").Get<int>(), verts,
-                               lp.triangles, why)) {
-            error = name + ": " + why;
+        if (const Result r = decode_draco_mesh(view.base, length, attrs.Get("POSITION").Get<int>(), verts,
+                                               lp.triangles);
+            !r.ok()) {
+            error = name + ": " + r.message;
             return false;
         }
         // Check the decoded sizes against what the accessors announce.
@@ -708,24 +708,20 @@ std::vector<std::string> split_lines(const std::string& text) {
 
 }  // namespace
 
-bool import_gltf(const std::string& path, const ImportOptions& options, RawInput& out,
-                 std::string& error, std::vector<std::string>& warnings) {
+Result import_gltf(const std::string& path, const ImportOptions& options, RawInput& out,
+                   std::vector<std::string>& warnings) {
+    auto bad = [](std::string what) { return Result::fail(Status::kBadInput, 0, std::move(what)); };
     out = RawInput{};
     try {
         std::ifstream f(path, std::ios::binary);
-        if (!f) {
-            error = "cannot open file";
-            return false;
-        }
+        if (!f) return Result::fail(Status::kIoError, 0, "cannot open file");
         std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)),
                                    std::istreambuf_iterator<char>());
         const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
         DracoIndices draco_indices;
         bytes = strip_draco_indices(bytes, binary, draco_indices);
-        if (bytes.size() >= std::numeric_limits<unsigned int>::max()) {
-            error = "file of 4 GiB or more (tinygltf limit)";
-            return false;
-        }
+        if (bytes.size() >= std::numeric_limits<unsigned int>::max())
+            return bad("file of 4 GiB or more (tinygltf limit)");
         const size_t slash = path.find_last_of('/');
         const std::string base_dir = slash == std::string::npos ? "." : path.substr(0, slash);
 
@@ -742,17 +738,13 @@ bool import_gltf(const std::string& path, const ImportOptions& options, RawInput
         for (const std::string& w : split_lines(warn)) warnings.push_back("tinygltf: " + w);
         if (!ok) {
             const auto lines = split_lines(err);
-            error = "not a valid glTF 2.0 file: " + (lines.empty() ? "tinygltf failed" : lines.front());
-            return false;
+            return bad("not a valid glTF 2.0 file: " + (lines.empty() ? "tinygltf failed" : lines.front()));
         }
         for (const std::string& e : split_lines(err)) warnings.push_back("tinygltf: " + e);
 
         for (const std::string& ext : model.extensionsRequired) {
             if (extension_supported(ext)) continue;
-            if (!options.permissive) {
-                error = "required extension " + ext + " is not supported";
-                return false;
-            }
+            if (!options.permissive) return bad("required extension " + ext + " is not supported");
             warnings.push_back("required extension " + ext + " is not supported; ignored");
         }
         for (const std::string& ext : model.extensionsUsed)
@@ -761,13 +753,14 @@ bool import_gltf(const std::string& path, const ImportOptions& options, RawInput
                                    " is not supported; geometry may be incomplete");
 
         GltfReader reader(model, draco_indices, options, warnings);
-        return reader.run(out, error);
+        std::string error;
+        if (!reader.run(out, error)) return bad(error);
+        return Result::success();
     } catch (const std::bad_alloc&) {
-        error = "out of memory while reading glTF";
+        return bad("out of memory while reading glTF");
     } catch (const std::exception& e) {
-        error = std::string("glTF error: ") + e.what();
+        return bad(std::string("glTF error: ") + e.what());
     }
-    return false;
 }
 
 }  // namespace cwbvh::compiler

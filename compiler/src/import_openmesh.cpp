@@ -375,15 +375,16 @@ bool check_off(const std::string& path, std::string& error) {
 
 }  // namespace
 
-bool import_openmesh(const std::string& path, const ImportOptions& options, RawInput& out,
-                     std::string& error, std::vector<std::string>& warnings) {
+Result import_openmesh(const std::string& path, const ImportOptions& options, RawInput& out,
+                       std::vector<std::string>& warnings) {
     (void)options;
     out = RawInput{};
+    auto bad = [](std::string what) { return Result::fail(Status::kBadInput, 0, std::move(what)); };
     const std::string ext = lower_extension(path);
-    if (ext == "ply" && (!check_ply_tokens(path, error) || !check_ply_header(path, error)))
-        return false;
-    if (ext == "obj" && !check_obj_faces(path, error)) return false;
-    if (ext == "off" && !check_off(path, error)) return false;
+    std::string error;
+    if (ext == "ply" && (!check_ply_tokens(path, error) || !check_ply_header(path, error))) return bad(error);
+    if (ext == "obj" && !check_obj_faces(path, error)) return bad(error);
+    if (ext == "off" && !check_off(path, error)) return bad(error);
     Mesh mesh;
     bool ok = false;
     std::vector<std::string> om_lines;
@@ -393,16 +394,14 @@ bool import_openmesh(const std::string& path, const ImportOptions& options, RawI
         ok = OpenMesh::IO::read_mesh(mesh, path, opt);
         om_lines = capture.error_lines();
     } catch (const std::bad_alloc&) {
-        error = "out of memory while reading (corrupt element counts?)";
-        return false;
+        return bad("out of memory while reading (corrupt element counts?)");
     } catch (const std::exception& e) {
-        error = std::string("OpenMesh failed: ") + e.what();
-        return false;
+        return bad(std::string("OpenMesh failed: ") + e.what());
     }
     if (!ok) {
         error = "OpenMesh could not read the file as " + ext;
         if (!om_lines.empty()) error += " (" + om_lines.front() + ")";
-        return false;
+        return bad(error);
     }
     constexpr size_t kMaxReaderLines = 5;
     for (size_t i = 0; i < om_lines.size() && i < kMaxReaderLines; ++i)
@@ -433,12 +432,9 @@ bool import_openmesh(const std::string& path, const ImportOptions& options, RawI
         for (size_t k = 2; k < poly.size(); ++k)
             prim.triangles.push_back({poly[0], poly[k - 1], poly[k]});
     }
-    if (prim.triangles.empty()) {
-        error = "no triangles";
-        return false;
-    }
+    if (prim.triangles.empty()) return bad("no triangles");
     out.primitives.push_back(std::move(prim));
-    return true;
+    return Result::success();
 }
 
 }  // namespace cwbvh::compiler

@@ -79,19 +79,15 @@ void quantize_interval(float p, uint8_t e, float lo, float hi, uint8_t& q_lo_out
     q_hi_out = uint8_t(q_hi);
 }
 
-bool quantize_node(const Aabb (&boxes)[8], uint8_t used, CwbvhNode& node, std::string& error) {
-    if (used == 0) {
-        error = "quantize: node without children";
-        return false;
-    }
+Result quantize_node(const Aabb (&boxes)[8], uint8_t used, CwbvhNode& node) {
+    if (used == 0) return Result::fail(Status::kInternal, 0, "quantize: node without children");
     Aabb frame;
     for (int s = 0; s < kWidth; ++s) {
         if (!(used >> s & 1)) continue;
         const Aabb& b = boxes[s];
         for (int a = 0; a < 3; ++a) {
             if (!std::isfinite(b.lo[a]) || !std::isfinite(b.hi[a]) || !(b.lo[a] <= b.hi[a])) {
-                error = "quantize: child box with an empty or non-finite axis";
-                return false;
+                return Result::fail(Status::kInternal, 0, "quantize: child box with an empty or non-finite axis");
             }
         }
         frame.grow(b);
@@ -99,9 +95,10 @@ bool quantize_node(const Aabb (&boxes)[8], uint8_t used, CwbvhNode& node, std::s
     for (int a = 0; a < 3; ++a) {
         node.p[a] = frame.lo[a];
         if (!choose_exponent(frame.lo[a], frame.hi[a], node.e[a])) {
-            error = "quantize: box extent " + std::to_string(double(frame.hi[a]) - double(frame.lo[a])) +
-                    " at " + std::to_string(frame.lo[a]) + " cannot be encoded (exponent out of range)";
-            return false;
+            return Result::fail(Status::kInternal, 0,
+                                "quantize: box extent " + std::to_string(double(frame.hi[a]) - double(frame.lo[a])) +
+                                    " at " + std::to_string(frame.lo[a]) +
+                                    " cannot be encoded (exponent out of range)");
         }
         for (int s = 0; s < kWidth; ++s) {
             node.q_lo[a][s] = 0;
@@ -111,7 +108,7 @@ bool quantize_node(const Aabb (&boxes)[8], uint8_t used, CwbvhNode& node, std::s
                               node.q_hi[a][s]);
         }
     }
-    return true;
+    return Result::success();
 }
 
 Aabb decode_child_box(const CwbvhNode& node, int slot) {

@@ -56,9 +56,8 @@ SceneData make_synthetic_scene(const SyntheticOptions& options) {
                                                 : compiler::Bvh2Section::kBvh2;
     core.emit.keep_mesh = options.source_geometry;
     compiler::EmitResult encoded;
-    std::string error;
-    if (!compiler::compile_scene(scene, core, encoded, error))
-        throw std::logic_error("make_synthetic_scene: " + error);
+    if (const Result r = compiler::compile_scene(scene, core, encoded); !r.ok())
+        throw std::logic_error("make_synthetic_scene: " + r.message);
     SceneData out = SceneData::copy_of(compiler::scene_sections(scene, encoded));
     if (!options.build_info) out.build_info.reset();
     return out;

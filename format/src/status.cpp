@@ -12,6 +12,9 @@ const char* status_name(Status s) {
         case Status::kCorrupt: return "corrupt";
         case Status::kChecksumMismatch: return "checksum mismatch";
         case Status::kInvalidArgument: return "invalid argument";
+        case Status::kBadInput: return "bad input";
+        case Status::kInternal: return "internal error";
+        case Status::kDeviceError: return "device error";
     }
     return "unknown status";
 }

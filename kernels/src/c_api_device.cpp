@@ -1,7 +1,6 @@
 // C API of the device loader (cwbvh/cwbvh_device.h) over cwbvh::DeviceScene.
 #include <cstdio>
 #include <new>
-#include <optional>
 #include <string>
 
 #include "cwbvh/cwbvh_device.h"
@@ -34,10 +33,10 @@ extern "C" cwbvh_status cwbvh_device_upload(const cwbvh_file* file, cwbvh_device
         return CWBVH_ERROR_INVALID_ARGUMENT;
     }
     try {
-        std::string why;
-        std::optional<cwbvh::DeviceScene> scene = cwbvh::DeviceScene::upload(
-            nodes, size_t(n_nodes), tris, size_t(n_tris), bvh2, size_t(n_bvh2), why);
-        if (!scene) {
+        cwbvh::Expected<cwbvh::DeviceScene> scene = cwbvh::DeviceScene::upload(
+            nodes, size_t(n_nodes), tris, size_t(n_tris), bvh2, size_t(n_bvh2));
+        if (!scene.ok()) {
+            const std::string& why = scene.error().message;
             set_error(error, error_size, why);
             return why.find("cudaErrorMemoryAllocation") != std::string::npos ? CWBVH_ERROR_OUT_OF_MEMORY
                                                                             : CWBVH_ERROR_IO;

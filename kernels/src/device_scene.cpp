@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <span>
 #include <utility>
 
@@ -79,28 +80,26 @@ T* alloc_and_copy(std::span<const T> src, Stager* stager, uint64_t& bytes) {
 
 }  // namespace
 
-std::optional<DeviceScene> DeviceScene::upload(const File& file, std::string& error,
-                                               const UploadOptions& options) {
+Expected<DeviceScene> DeviceScene::upload(const File& file, const UploadOptions& options) {
     const std::span<const Bvh2Node> bvh2 = options.bvh2 ? file.bvh2() : std::span<const Bvh2Node>{};
     return upload(file.nodes().data(), file.nodes().size(), file.triangles().data(), file.triangles().size(),
-                  bvh2.data(), bvh2.size(), error, options);
+                  bvh2.data(), bvh2.size(), options);
 }
 
-std::optional<DeviceScene> DeviceScene::upload(const CwbvhNode* node_ptr, size_t node_count,
-                                               const TriangleRecord* tri_ptr, size_t tri_count,
-                                               const Bvh2Node* bvh2_ptr, size_t bvh2_count, std::string& error,
-                                               const UploadOptions& options) {
+Expected<DeviceScene> DeviceScene::upload(const CwbvhNode* node_ptr, size_t node_count,
+                                          const TriangleRecord* tri_ptr, size_t tri_count,
+                                          const Bvh2Node* bvh2_ptr, size_t bvh2_count, const UploadOptions& options) {
     const std::span<const CwbvhNode> nodes(node_ptr, node_ptr ? node_count : 0);
     const std::span<const TriangleRecord> triangles(tri_ptr, tri_ptr ? tri_count : 0);
     const std::span<const Bvh2Node> bvh2(bvh2_ptr, bvh2_ptr ? bvh2_count : 0);
     constexpr size_t kMaxCount = std::numeric_limits<uint32_t>::max();
     if (nodes.empty()) {
-        error = "device upload: the scene has no NODE section (not opened, or not selected)";
-        return std::nullopt;
+        return Result::fail(Status::kInvalidArgument, 0,
+                            "device upload: the scene has no NODE section (not opened, or not selected)");
     }
     if (nodes.size() > kMaxCount || triangles.size() > kMaxCount || bvh2.size() > kMaxCount) {
-        error = "device upload: more than 2^32-1 nodes or triangles (kernels use 32-bit indices)";
-        return std::nullopt;
+        return Result::fail(Status::kInvalidArgument, 0,
+                            "device upload: more than 2^32-1 nodes or triangles (kernels use 32-bit indices)");
     }
     const auto t0 = std::chrono::steady_clock::now();
     DeviceScene scene;
@@ -129,14 +128,13 @@ std::optional<DeviceScene> DeviceScene::upload(const CwbvhNode* node_ptr, size_t
         CWBVH_CUDA_CHECK(cudaDeviceSynchronize());
         scene.stats_.bytes = bytes;
     } catch (const CudaError& e) {
-        error = std::string("device upload: ") + e.what();
-        return std::nullopt;  // scene's destructor frees what was allocated
+        // scene's destructor frees what was allocated
+        return Result::fail(Status::kDeviceError, 0, std::string("device upload: ") + e.what());
     } catch (const std::bad_alloc&) {
-        error = "device upload: out of host memory";
-        return std::nullopt;
+        return Result::fail(Status::kDeviceError, 0, "device upload: out of host memory");
     }
     scene.stats_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    return std::optional<DeviceScene>(std::move(scene));
+    return Expected<DeviceScene>(std::move(scene));
 }
 
 DeviceScene::DeviceScene(DeviceScene&& o) noexcept

@@ -3,7 +3,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <optional>
 #include <vector>
 
 #include "cwbvh/kernels/cuda_check.h"
@@ -79,14 +78,12 @@ GpuStatus gpu_status(std::string& why) {
 
 bool gpu_available(std::string& why) { return gpu_status(why) == GpuStatus::kReady; }
 
-GpuTraceResult trace_on_gpu(const File& file, const Ray* rays, Hit* hits, size_t n, const GpuTraceOptions& options) {
+Expected<GpuTraceResult> trace_on_gpu(const File& file, const Ray* rays, Hit* hits, size_t n,
+                                      const GpuTraceOptions& options) {
     GpuTraceResult r;
     r.rays = n;
     std::string why;
-    if (!gpu_available(why)) {
-        r.error = why;
-        return r;
-    }
+    if (!gpu_available(why)) return Result::fail(Status::kDeviceError, 0, why);
     try {
         if (options.device >= 0) CWBVH_CUDA_CHECK(cudaSetDevice(options.device));
         int dev = 0;
@@ -97,15 +94,12 @@ GpuTraceResult trace_on_gpu(const File& file, const Ray* rays, Hit* hits, size_t
 
         UploadOptions up;
         up.bvh2 = options.kernel == GpuKernel::kBvh2;
-        std::optional<DeviceScene> scene = DeviceScene::upload(file, why, up);
-        if (!scene) {
-            r.error = why;
-            return r;
-        }
+        Expected<DeviceScene> scene = DeviceScene::upload(file, up);
+        if (!scene.ok()) return scene.error();
         r.scene_upload_ms = scene->upload_stats().seconds * 1e3;
         if (options.kernel == GpuKernel::kBvh2 && !scene->has_bvh2()) {
-            r.error = file.path() + ": no BVH2 section (compile with cwbvhc --keep-sbvh)";
-            return r;
+            return Result::fail(Status::kInvalidArgument, 0,
+                                file.path() + ": no BVH2 section (compile with cwbvhc --keep-sbvh)");
         }
         r.node_bytes = options.kernel == GpuKernel::kBvh2 ? scene->bvh2_bytes() : scene->node_bytes();
         r.triangle_bytes = scene->triangle_bytes();
@@ -126,9 +120,9 @@ GpuTraceResult trace_on_gpu(const File& file, const Ray* rays, Hit* hits, size_t
             to.kernel_ms = ms;
             to.stats = st;
             if (options.kernel == GpuKernel::kBvh2) {
-                trace_bvh2(*scene, d_rays.get(), d_hits.get(), n, q, nullptr, to);
+                trace_bvh2(scene.value(), d_rays.get(), d_hits.get(), n, q, nullptr, to);
             } else {
-                trace(*scene, d_rays.get(), d_hits.get(), n, q, nullptr, to);
+                trace(scene.value(), d_rays.get(), d_hits.get(), n, q, nullptr, to);
             }
         };
         // One untimed warm-up run (lazy module loading happens at the first launch), then
@@ -155,10 +149,8 @@ GpuTraceResult trace_on_gpu(const File& file, const Ray* rays, Hit* hits, size_t
         r.invalid_rays = stats.invalid_rays;
         r.stack_overflows = stats.stack_overflows;
         r.bad_indices = stats.bad_indices;
-        r.ok = true;
     } catch (const std::exception& e) {
-        r.ok = false;
-        r.error = e.what();
+        return Result::fail(Status::kDeviceError, 0, e.what());
     }
     return r;
 }

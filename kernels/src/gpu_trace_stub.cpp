@@ -10,11 +10,10 @@ GpuStatus gpu_status(std::string& why) {
 
 bool gpu_available(std::string& why) { return gpu_status(why) == GpuStatus::kReady; }
 
-GpuTraceResult trace_on_gpu(const File&, const Ray*, Hit*, size_t n, const GpuTraceOptions&) {
-    GpuTraceResult r;
-    r.rays = n;
-    gpu_available(r.error);
-    return r;
+Expected<GpuTraceResult> trace_on_gpu(const File&, const Ray*, Hit*, size_t, const GpuTraceOptions&) {
+    std::string why;
+    gpu_available(why);
+    return Result::fail(Status::kDeviceError, 0, why);
 }
 
 }  // namespace cwbvh

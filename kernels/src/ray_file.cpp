@@ -14,33 +14,30 @@ static_assert(std::endian::native == std::endian::little,
 
 constexpr size_t kHeaderSize = sizeof(RayFileHeader);
 
-bool fail(std::string& error, const std::string& what) {
-    error = what;
-    return false;
-}
+Result bad(std::string what) { return Result::fail(Status::kBadInput, 0, std::move(what)); }
+Result io(std::string what) { return Result::fail(Status::kIoError, 0, std::move(what)); }
 
-bool read_all(const std::string& path, std::vector<uint8_t>& bytes, std::string& error) {
+Result read_all(const std::string& path, std::vector<uint8_t>& bytes) {
     FILE* f = std::fopen(path.c_str(), "rb");
-    if (!f) return fail(error, path + ": cannot open: " + std::strerror(errno));
+    if (!f) return io(path + ": cannot open: " + std::strerror(errno));
     bytes.clear();
     uint8_t buf[1 << 16];
     size_t n;
     while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) bytes.insert(bytes.end(), buf, buf + n);
     const bool bad = std::ferror(f) != 0;
     std::fclose(f);
-    if (bad) return fail(error, path + ": read error");
-    return true;
+    if (bad) return io(path + ": read error");
+    return Result::success();
 }
 
-bool write_all(const std::string& path, const RayFileHeader& h, const void* records, size_t bytes,
-               std::string& error) {
+Result write_all(const std::string& path, const RayFileHeader& h, const void* records, size_t bytes) {
     FILE* f = std::fopen(path.c_str(), "wb");
-    if (!f) return fail(error, path + ": cannot create: " + std::strerror(errno));
+    if (!f) return io(path + ": cannot create: " + std::strerror(errno));
     bool ok = std::fwrite(&h, sizeof h, 1, f) == 1;
     if (ok && bytes > 0) ok = std::fwrite(records, 1, bytes, f) == bytes;
     if (std::fclose(f) != 0) ok = false;
-    if (!ok) return fail(error, path + ": write error");
-    return true;
+    if (!ok) return io(path + ": write error");
+    return Result::success();
 }
 
 RayFileHeader make_header(bool hits, uint64_t count, uint32_t flags) {
@@ -57,76 +54,77 @@ RayFileHeader make_header(bool hits, uint64_t count, uint32_t flags) {
 
 }  // namespace
 
-bool parse_ray_file_header(const uint8_t* bytes, size_t size, bool want_hits, uint64_t& count, uint32_t& flags,
-                           std::string& error) {
+Result parse_ray_file_header(const uint8_t* bytes, size_t size, bool want_hits, uint64_t& count,
+                             uint32_t& flags) {
     const char* kind = want_hits ? "hit file" : "ray file";
     if (size < kHeaderSize)
-        return fail(error, std::string("not a ") + kind + ": " + std::to_string(size) + " bytes, shorter than the 32-byte header");
+        return bad(std::string("not a ") + kind + ": " + std::to_string(size) +
+                   " bytes, shorter than the 32-byte header");
     RayFileHeader h;
     std::memcpy(&h, bytes, sizeof h);
     const uint8_t* want = want_hits ? kHitFileMagic : kRayFileMagic;
     const uint8_t* other = want_hits ? kRayFileMagic : kHitFileMagic;
     if (std::memcmp(h.magic, want, 8) != 0) {
         if (std::memcmp(h.magic, other, 8) == 0)
-            return fail(error, std::string("is a ") + (want_hits ? "ray file" : "hit file") + ", expected a " + kind);
-        return fail(error, std::string("not a ") + kind + " (bad magic)");
+            return bad(std::string("is a ") + (want_hits ? "ray file" : "hit file") + ", expected a " + kind);
+        return bad(std::string("not a ") + kind + " (bad magic)");
     }
     if (h.version_major != kRayFileVersionMajor)
-        return fail(error, "unsupported version " + std::to_string(h.version_major) + "." +
+        return bad("unsupported version " + std::to_string(h.version_major) + "." +
                                std::to_string(h.version_minor) + " (this reader knows 1.x)");
     const uint32_t rs = want_hits ? uint32_t(sizeof(Hit)) : uint32_t(sizeof(Ray));
     if (h.record_size != rs)
-        return fail(error, "record_size " + std::to_string(h.record_size) + ", expected " + std::to_string(rs));
+        return bad("record_size " + std::to_string(h.record_size) + ", expected " + std::to_string(rs));
     const uint32_t allowed = want_hits ? (kHitFileAnyHit | kHitFileWatertight) : 0u;
-    if ((h.flags & ~allowed) != 0) return fail(error, "unknown flags 0x" + [&] {
+    if ((h.flags & ~allowed) != 0) return bad("unknown flags 0x" + [&] {
         char b[16];
         std::snprintf(b, sizeof b, "%08x", unsigned(h.flags));
         return std::string(b);
     }());
-    if (h.reserved != 0) return fail(error, "reserved header field is not 0");
+    if (h.reserved != 0) return bad("reserved header field is not 0");
     const uint64_t payload = size - kHeaderSize;
     // count * rs may overflow; compare by division instead.
     if (h.count > payload / rs || payload != h.count * rs)
-        return fail(error, "size " + std::to_string(size) + " bytes does not match count " + std::to_string(h.count) +
+        return bad("size " + std::to_string(size) + " bytes does not match count " + std::to_string(h.count) +
                                " (expected 32 + " + std::to_string(rs) + " * count: truncated or trailing bytes)");
     count = h.count;
     flags = h.flags;
-    return true;
+    return Result::success();
 }
 
-bool read_ray_file(const std::string& path, std::vector<Ray>& rays, std::string& error) {
+Result read_ray_file(const std::string& path, std::vector<Ray>& rays) {
     std::vector<uint8_t> bytes;
-    if (!read_all(path, bytes, error)) return false;
+    if (Result r = read_all(path, bytes); !r.ok()) return r;
     uint64_t count = 0;
     uint32_t flags = 0;
-    if (!parse_ray_file_header(bytes.data(), bytes.size(), false, count, flags, error)) {
-        error = path + ": " + error;
-        return false;
+    if (Result r = parse_ray_file_header(bytes.data(), bytes.size(), false, count, flags); !r.ok()) {
+        r.message = path + ": " + r.message;
+        return r;
     }
     rays.resize(size_t(count));
     if (count) std::memcpy(rays.data(), bytes.data() + kHeaderSize, size_t(count) * sizeof(Ray));
-    return true;
+    return Result::success();
 }
 
-bool read_hit_file(const std::string& path, std::vector<Hit>& hits, uint32_t& flags, std::string& error) {
+Result read_hit_file(const std::string& path, std::vector<Hit>& hits, uint32_t& flags) {
     std::vector<uint8_t> bytes;
-    if (!read_all(path, bytes, error)) return false;
+    if (Result r = read_all(path, bytes); !r.ok()) return r;
     uint64_t count = 0;
-    if (!parse_ray_file_header(bytes.data(), bytes.size(), true, count, flags, error)) {
-        error = path + ": " + error;
-        return false;
+    if (Result r = parse_ray_file_header(bytes.data(), bytes.size(), true, count, flags); !r.ok()) {
+        r.message = path + ": " + r.message;
+        return r;
     }
     hits.resize(size_t(count));
     if (count) std::memcpy(hits.data(), bytes.data() + kHeaderSize, size_t(count) * sizeof(Hit));
-    return true;
+    return Result::success();
 }
 
-bool write_ray_file(const std::string& path, const Ray* rays, size_t count, std::string& error) {
-    return write_all(path, make_header(false, count, 0), rays, count * sizeof(Ray), error);
+Result write_ray_file(const std::string& path, const Ray* rays, size_t count) {
+    return write_all(path, make_header(false, count, 0), rays, count * sizeof(Ray));
 }
 
-bool write_hit_file(const std::string& path, const Hit* hits, size_t count, uint32_t flags, std::string& error) {
-    return write_all(path, make_header(true, count, flags), hits, count * sizeof(Hit), error);
+Result write_hit_file(const std::string& path, const Hit* hits, size_t count, uint32_t flags) {
+    return write_all(path, make_header(true, count, flags), hits, count * sizeof(Hit));
 }
 
 }  // namespace cwbvh

@@ -48,7 +48,8 @@ Camera default_camera(const SceneBounds& b) {
     return c;
 }
 
-bool parse_camera(const std::string& text, Camera& camera, std::string& error) {
+Result parse_camera(const std::string& text, Camera& camera) {
+    auto bad = [](std::string what) { return Result::fail(Status::kInvalidArgument, 0, std::move(what)); };
     double v[7];
     const char* p = text.c_str();
     for (int i = 0; i < 7; ++i) {
@@ -56,36 +57,31 @@ bool parse_camera(const std::string& text, Camera& camera, std::string& error) {
         errno = 0;
         v[i] = std::strtod(p, &end);
         if (end == p || errno != 0 || !std::isfinite(v[i]) || std::fabs(v[i]) > 3.0e38) {
-            error = "--camera: expected ex,ey,ez,tx,ty,tz,fov (7 finite numbers), got '" + text + "'";
-            return false;
+            return bad("--camera: expected ex,ey,ez,tx,ty,tz,fov (7 finite numbers), got '" + text + "'");
         }
         p = end;
         if (i < 6) {
             if (*p != ',') {
-                error = "--camera: expected 7 comma-separated numbers, got '" + text + "'";
-                return false;
+                return bad("--camera: expected 7 comma-separated numbers, got '" + text + "'");
             }
             ++p;
         }
     }
     if (*p != '\0') {
-        error = "--camera: trailing characters in '" + text + "'";
-        return false;
+        return bad("--camera: trailing characters in '" + text + "'");
     }
     if (!(v[6] > 0 && v[6] < 180)) {
-        error = "--camera: fov must be in (0, 180) degrees";
-        return false;
+        return bad("--camera: fov must be in (0, 180) degrees");
     }
     if (v[0] == v[3] && v[1] == v[4] && v[2] == v[5]) {
-        error = "--camera: eye and target are the same point";
-        return false;
+        return bad("--camera: eye and target are the same point");
     }
     for (int a = 0; a < 3; ++a) {
         camera.eye[a] = float(v[a]);
         camera.target[a] = float(v[3 + a]);
     }
     camera.fov_deg = float(v[6]);
-    return true;
+    return Result::success();
 }
 
 std::vector<Ray> camera_rays(const Camera& c, uint32_t width, uint32_t height) {

@@ -72,12 +72,11 @@ std::string join_names(const std::vector<View>& v) {
 
 }  // namespace
 
-bool ViewCatalog::parse(const std::string& text, const std::string& source, ViewCatalog& out, std::string& error) {
+Result ViewCatalog::parse(const std::string& text, const std::string& source, ViewCatalog& out) {
     ViewCatalog cat;
     cat.source_ = source;
     auto fail = [&](size_t line, const std::string& what) {
-        error = source + ":" + std::to_string(line) + ": " + what;
-        return false;
+        return Result::fail(Status::kBadInput, 0, source + ":" + std::to_string(line) + ": " + what);
     };
     if (text.size() > kMaxCatalogBytes)
         return fail(1, "catalog larger than " + std::to_string(kMaxCatalogBytes) + " bytes");
@@ -125,8 +124,8 @@ bool ViewCatalog::parse(const std::string& text, const std::string& source, View
         v.scene = f[0];
         v.name = f[1];
         v.line = uint32_t(line_no);
-        std::string cam_error;
-        if (!parse_camera(f[2], v.camera, cam_error)) {
+        if (Result cam = parse_camera(f[2], v.camera); !cam.ok()) {
+            std::string& cam_error = cam.message;
             // parse_camera words its errors for the --camera option; name the field instead.
             const std::string prefix = "--camera: ";
             if (cam_error.rfind(prefix, 0) == 0) cam_error.erase(0, prefix.size());
@@ -141,22 +140,16 @@ bool ViewCatalog::parse(const std::string& text, const std::string& source, View
         cat.views_.push_back(std::move(v));
     }
     out = std::move(cat);
-    return true;
+    return Result::success();
 }
 
-bool ViewCatalog::load(const std::string& path, ViewCatalog& out, std::string& error) {
+Result ViewCatalog::load(const std::string& path, ViewCatalog& out) {
     std::ifstream in(path, std::ios::binary);
-    if (!in) {
-        error = path + ": cannot read: " + std::strerror(errno);
-        return false;
-    }
+    if (!in) return Result::fail(Status::kIoError, 0, path + ": cannot read: " + std::strerror(errno));
     std::ostringstream ss;
     ss << in.rdbuf();
-    if (in.bad()) {
-        error = path + ": cannot read: I/O error";
-        return false;
-    }
-    return parse(ss.str(), path, out, error);
+    if (in.bad()) return Result::fail(Status::kIoError, 0, path + ": cannot read: I/O error");
+    return parse(ss.str(), path, out);
 }
 
 bool ViewCatalog::has_scene(const std::string& scene) const {
@@ -172,33 +165,30 @@ std::vector<View> ViewCatalog::views_of(const std::string& scene) const {
     return out;
 }
 
-bool ViewCatalog::find(const std::string& scene, const std::string& which, View& out, std::string& error) const {
+Result ViewCatalog::find(const std::string& scene, const std::string& which, View& out) const {
+    auto fail = [](std::string what) { return Result::fail(Status::kInvalidArgument, 0, std::move(what)); };
     const std::vector<View> vs = views_of(scene);
-    if (vs.empty()) {
-        error = "scene '" + scene + "' has no views in " + source_;
-        return false;
-    }
+    if (vs.empty()) return fail("scene '" + scene + "' has no views in " + source_);
     bool digits = !which.empty();
     for (char c : which) digits = digits && is_digit(c);
     if (digits) {
         // At most 9 digits: no overflow, and any index past the list is reported as such.
         const unsigned long n = which.size() <= 9 ? std::strtoul(which.c_str(), nullptr, 10) : 0;
         if (n < 1 || n > vs.size()) {
-            error = "view " + printable(which) + " out of range: scene '" + scene + "' has " +
-                    std::to_string(vs.size()) + " views in " + source_ + " (" + join_names(vs) + ")";
-            return false;
+            return fail("view " + printable(which) + " out of range: scene '" + scene + "' has " +
+                        std::to_string(vs.size()) + " views in " + source_ + " (" + join_names(vs) + ")");
         }
         out = vs[n - 1];
-        return true;
+        return Result::success();
     }
     for (const View& v : vs) {
         if (v.name == which) {
             out = v;
-            return true;
+            return Result::success();
         }
     }
-    error = "no view '" + printable(which) + "' of scene '" + scene + "' in " + source_ + " (" + join_names(vs) + ")";
-    return false;
+    return fail("no view '" + printable(which) + "' of scene '" + scene + "' in " + source_ + " (" + join_names(vs) +
+                ")");
 }
 
 std::string default_view_catalog_path() {
@@ -207,13 +197,17 @@ std::string default_view_catalog_path() {
     return CWBVH_VIEW_CATALOG;
 }
 
-CatalogLoad load_view_catalog(const std::string& path, ViewCatalog& out, std::string& error) {
+Result load_view_catalog(const std::string& path, ViewCatalog& out, CatalogLoad& loaded) {
     const char* env = std::getenv("CWBVH_VIEWS");
     const bool named = !path.empty() || (env != nullptr && *env != '\0');
     const std::string p = path.empty() ? default_view_catalog_path() : path;
-    if (ViewCatalog::load(p, out, error)) return CatalogLoad::kLoaded;
-    if (!named && !std::ifstream(p)) return CatalogLoad::kAbsent;
-    return CatalogLoad::kError;
+    Result r = ViewCatalog::load(p, out);
+    if (r.ok()) {
+        loaded = CatalogLoad::kLoaded;
+    } else {
+        loaded = !named && !std::ifstream(p) ? CatalogLoad::kAbsent : CatalogLoad::kError;
+    }
+    return r;
 }
 
 std::string scene_key(const std::string& path) {

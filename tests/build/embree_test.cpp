@@ -4,6 +4,7 @@
 #include <cstring>
 #include <filesystem>
 
+#include "../result_util.h"
 #include "build/test_mesh.h"
 #include "cwbvh/compiler/build.h"
 
@@ -15,9 +16,9 @@ using test::add_triangle;
 BinaryBvh embree_ok(const Scene& s, SbvhConfig cfg = {}) {
     BinaryBvh bvh;
     std::string error;
-    EXPECT_TRUE(build_embree(s, cfg, bvh, error)) << error;
+    EXPECT_TRUE(::cwbvh::test::ok(build_embree(s, cfg, bvh), error)) << error;
     std::string verror;
-    EXPECT_TRUE(validate_binary_bvh(s, bvh, verror, 4000)) << verror;
+    EXPECT_TRUE(::cwbvh::test::ok(validate_binary_bvh(s, bvh, 4000), verror)) << verror;
     EXPECT_LE(double(bvh.references), (1.0 + cfg.max_reference_growth) * double(s.triangle_count()));
     return bvh;
 }
@@ -37,7 +38,7 @@ TEST(Embree, SmallAndDegenerate) {
     embree_ok(flat);
     BinaryBvh bvh;
     std::string error;
-    EXPECT_FALSE(build_embree(Scene{}, {}, bvh, error));
+    EXPECT_FALSE(::cwbvh::test::ok(build_embree(Scene{}, {}, bvh), error));
 }
 
 TEST(Embree, SpatialSplitsHappenOnSlivers) {

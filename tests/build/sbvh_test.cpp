@@ -6,6 +6,7 @@
 #include <cstring>
 #include <filesystem>
 
+#include "../result_util.h"
 #include "build/test_mesh.h"
 #include "cwbvh/compiler/build.h"
 
@@ -17,9 +18,9 @@ using test::add_triangle;
 BinaryBvh build_ok(const Scene& s, SbvhConfig cfg = {}) {
     BinaryBvh bvh;
     std::string error;
-    EXPECT_TRUE(build_sbvh(s, cfg, bvh, error)) << error;
+    EXPECT_TRUE(::cwbvh::test::ok(build_sbvh(s, cfg, bvh), error)) << error;
     std::string verror;
-    EXPECT_TRUE(validate_binary_bvh(s, bvh, verror, 4000)) << verror;
+    EXPECT_TRUE(::cwbvh::test::ok(validate_binary_bvh(s, bvh, 4000), verror)) << verror;
     EXPECT_EQ(bvh.references, (bvh.nodes.size() + 1) / 2);
     EXPECT_LE(double(bvh.references), (1.0 + cfg.max_reference_growth) * double(s.triangle_count()));
     return bvh;
@@ -37,7 +38,7 @@ TEST(Sbvh, EmptySceneIsAnError) {
     Scene s;
     BinaryBvh bvh;
     std::string error;
-    EXPECT_FALSE(build_sbvh(s, {}, bvh, error));
+    EXPECT_FALSE(::cwbvh::test::ok(build_sbvh(s, {}, bvh), error));
     EXPECT_FALSE(error.empty());
 }
 
@@ -184,10 +185,10 @@ TEST(Sbvh, RealMeshes) {
         const auto t0 = std::chrono::steady_clock::now();
         BinaryBvh bvh;
         std::string error;
-        ASSERT_TRUE(build_sbvh(s, {}, bvh, error)) << error;
+        ASSERT_TRUE(::cwbvh::test::ok(build_sbvh(s, {}, bvh), error)) << error;
         const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         std::string verror;
-        EXPECT_TRUE(validate_binary_bvh(s, bvh, verror, 20000)) << name << ": " << verror;
+        EXPECT_TRUE(::cwbvh::test::ok(validate_binary_bvh(s, bvh, 20000), verror)) << name << ": " << verror;
         std::printf("%s: %zu tris, %.3f s, refs %llu (+%.2f%%), spatial %llu, object %llu, SAH %.3f\n", name,
                     s.triangle_count(), sec, (unsigned long long)bvh.references,
                     100.0 * (double(bvh.references) / double(s.triangle_count()) - 1.0),
@@ -204,9 +205,9 @@ TEST(Sbvh, DeterministicAcrossThreadCounts) {
     two.threads = 2;
     BinaryBvh a, b, c;
     std::string error;
-    ASSERT_TRUE(build_sbvh(s, one, a, error)) << error;
-    ASSERT_TRUE(build_sbvh(s, two, b, error)) << error;
-    ASSERT_TRUE(build_sbvh(s, dflt, c, error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(build_sbvh(s, one, a), error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(build_sbvh(s, two, b), error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(build_sbvh(s, dflt, c), error)) << error;
     EXPECT_TRUE(identical(a, b));
     EXPECT_TRUE(identical(a, c));
     EXPECT_GT(a.spatial_splits, 0u);

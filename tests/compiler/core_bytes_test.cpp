@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "../result_util.h"
 #include "compiler/cli_support.h"
 #include "cwbvh/compiler/build.h"
 #include "cwbvh/compiler/core.h"
@@ -48,15 +49,15 @@ std::string core_file(const std::string& input, const Case& c) {
     Scene scene;
     std::string error;
     std::vector<std::string> warnings;
-    EXPECT_TRUE(import_scene({input}, ImportOptions{}, scene, error, warnings)) << error;
+    EXPECT_TRUE(::cwbvh::test::ok(import_scene({input}, ImportOptions{}, scene, warnings), error)) << error;
     BinaryBvh binary;
-    const bool built = c.embree ? build_embree(scene, c.core.sbvh, binary, error)
-                                : build_sbvh(scene, c.core.sbvh, binary, error);
+    const bool built = c.embree ? ::cwbvh::test::ok(build_embree(scene, c.core.sbvh, binary), error)
+                                : ::cwbvh::test::ok(build_sbvh(scene, c.core.sbvh, binary), error);
     EXPECT_TRUE(built) << error;
     EmitResult encoded;
-    EXPECT_TRUE(compile_binary(scene, binary, c.core, encoded, error)) << error;
+    EXPECT_TRUE(::cwbvh::test::ok(compile_binary(scene, binary, c.core, encoded), error)) << error;
     std::vector<uint8_t> bytes;
-    EXPECT_TRUE(scene_bytes(scene, encoded, bytes, error)) << error;
+    EXPECT_TRUE(::cwbvh::test::ok(scene_bytes(scene, encoded, bytes), error)) << error;
     return std::string(bytes.begin(), bytes.end());
 }
 

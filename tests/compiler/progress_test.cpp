@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "../result_util.h"
 #include "compiler/cli_support.h"
 #include "cwbvh/compiler/compile.h"
 #include "cwbvh/compiler/progress.h"
@@ -65,7 +66,7 @@ TEST(CompileProgress, CountedPhasesEndWithDoneEqualTotalAndTheFileIsUnchanged) {
             options.output = (dir / "plain.cwbvh").string();
             CompileStats plain_stats;
             std::string error;
-            ASSERT_TRUE(compile(options, plain_stats, error)) << error;
+            ASSERT_TRUE(::cwbvh::test::ok(compile(options, plain_stats), error)) << error;
 
             Progress progress;
             std::vector<PhaseEnd> ends;
@@ -76,7 +77,7 @@ TEST(CompileProgress, CountedPhasesEndWithDoneEqualTotalAndTheFileIsUnchanged) {
             };
             options.output = (dir / "progress.cwbvh").string();
             CompileStats stats;
-            ASSERT_TRUE(compile(options, stats, error, on_phase, &progress)) << error;
+            ASSERT_TRUE(::cwbvh::test::ok(compile(options, stats, on_phase, &progress), error)) << error;
 
             ASSERT_EQ(ends.size(), 6u);
             for (const PhaseEnd& e : ends) EXPECT_EQ(e.done, e.total) << e.phase;
@@ -111,11 +112,11 @@ TEST(CompileProgress, EmbreeBuilderIsNotCounted) {
     std::vector<PhaseEnd> ends;
     CompileStats stats;
     std::string error;
-    ASSERT_TRUE(compile(options, stats, error,
+    ASSERT_TRUE(::cwbvh::test::ok(compile(options, stats,
                         [&](const std::string& phase, bool done, double) {
                             if (done) ends.push_back({phase, progress.done.load(), progress.total.load()});
                         },
-                        &progress))
+                        &progress), error))
         << error;
     ASSERT_EQ(ends.size(), 6u);
     EXPECT_EQ(ends[1].phase, "embree");

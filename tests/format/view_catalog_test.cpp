@@ -27,16 +27,17 @@ constexpr const char* kGood =
 
 ViewCatalog parse_ok(const std::string& text) {
     ViewCatalog c;
-    std::string err;
-    EXPECT_TRUE(ViewCatalog::parse(text, "t.txt", c, err)) << err;
+    const Result r = ViewCatalog::parse(text, "t.txt", c);
+    EXPECT_TRUE(r.ok()) << r.message;
     return c;
 }
 
 /// The error of a catalog that must not parse.
 std::string parse_error(const std::string& text) {
     ViewCatalog c;
-    std::string err;
-    EXPECT_FALSE(ViewCatalog::parse(text, "t.txt", c, err)) << "parsed: " << text;
+    const Result r = ViewCatalog::parse(text, "t.txt", c);
+    EXPECT_FALSE(r.ok()) << "parsed: " << text;
+    const std::string& err = r.message;
     EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 0) << err;
     return err;
 }
@@ -68,19 +69,24 @@ TEST(ViewCatalog, ParsesViewsCommentsAndBlankLines) {
 TEST(ViewCatalog, FindsByNameAndOneBasedIndex) {
     const ViewCatalog c = parse_ok(kGood);
     View v;
-    std::string err;
-    ASSERT_TRUE(c.find("scene_a", "second", v, err)) << err;
+    Result r = c.find("scene_a", "second", v);
+    const std::string& err = r.message;
+    ASSERT_TRUE(r.ok()) << err;
     EXPECT_EQ(v.camera.eye[2], 3.0f);
-    ASSERT_TRUE(c.find("scene_a", "3", v, err)) << err;
+    r = c.find("scene_a", "3", v);
+    ASSERT_TRUE(r.ok()) << err;
     EXPECT_EQ(v.name, "third-view");
-    ASSERT_TRUE(c.find("scene_a", "1", v, err)) << err;
+    r = c.find("scene_a", "1", v);
+    ASSERT_TRUE(r.ok()) << err;
     EXPECT_EQ(v.name, "first");
     for (const char* bad : {"0", "4", "99999999999999999999", "nope", "First"}) {
-        EXPECT_FALSE(c.find("scene_a", bad, v, err)) << bad;
+        r = c.find("scene_a", bad, v);
+        EXPECT_FALSE(r.ok()) << bad;
         EXPECT_NE(err.find("scene 'scene_a'"), std::string::npos) << err;
         EXPECT_NE(err.find("1 first, 2 second, 3 third-view"), std::string::npos) << err;
     }
-    EXPECT_FALSE(c.find("scene_c", "1", v, err));
+    r = c.find("scene_c", "1", v);
+    EXPECT_FALSE(r.ok());
     EXPECT_NE(err.find("scene 'scene_c' has no views in t.txt"), std::string::npos) << err;
 }
 
@@ -149,26 +155,34 @@ TEST(ViewCatalog, UnknownSceneFallsBackToTheDefaultCamera) {
 
 TEST(ViewCatalog, LoadNamesTheFileAndCatalogPathRules) {
     ViewCatalog c;
-    std::string err;
+    Result r;
+    const std::string& err = r.message;
+    CatalogLoad loaded = CatalogLoad::kError;
     const std::string missing = test::temp_dir() + "/no_such_catalog.txt";
-    EXPECT_FALSE(ViewCatalog::load(missing, c, err));
+    r = ViewCatalog::load(missing, c);
+    EXPECT_FALSE(r.ok());
     EXPECT_TRUE(starts_with(err, missing + ": cannot read")) << err;
     // A named catalog (--views) must exist; only the compiled-in default may be absent.
-    EXPECT_EQ(load_view_catalog(missing, c, err), CatalogLoad::kError);
+    r = load_view_catalog(missing, c, loaded);
+    EXPECT_EQ(loaded, CatalogLoad::kError);
     const std::string bad = test::write_temp("bad_catalog.txt", {'x', '\n'});
-    EXPECT_EQ(load_view_catalog(bad, c, err), CatalogLoad::kError);
+    r = load_view_catalog(bad, c, loaded);
+    EXPECT_EQ(loaded, CatalogLoad::kError);
     EXPECT_TRUE(starts_with(err, bad + ":1: expected the header")) << err;
     const std::string good_text = kGood;
     const std::string good = test::write_temp("good_catalog.txt", {good_text.begin(), good_text.end()});
-    ASSERT_EQ(load_view_catalog(good, c, err), CatalogLoad::kLoaded) << err;
+    r = load_view_catalog(good, c, loaded);
+    ASSERT_EQ(loaded, CatalogLoad::kLoaded) << err;
     EXPECT_EQ(c.source(), good);
     EXPECT_EQ(c.views().size(), 4u);
     // $CWBVH_VIEWS replaces the compiled-in path, and is then a named catalog.
     ::setenv("CWBVH_VIEWS", good.c_str(), 1);
     EXPECT_EQ(default_view_catalog_path(), good);
-    EXPECT_EQ(load_view_catalog("", c, err), CatalogLoad::kLoaded) << err;
+    r = load_view_catalog("", c, loaded);
+    EXPECT_EQ(loaded, CatalogLoad::kLoaded) << err;
     ::setenv("CWBVH_VIEWS", missing.c_str(), 1);
-    EXPECT_EQ(load_view_catalog("", c, err), CatalogLoad::kError);
+    r = load_view_catalog("", c, loaded);
+    EXPECT_EQ(loaded, CatalogLoad::kError);
     ::unsetenv("CWBVH_VIEWS");
     EXPECT_EQ(default_view_catalog_path(), std::string(CWBVH_SOURCE_DIR) + "/views/catalog.txt");
 }
@@ -187,8 +201,8 @@ TEST(ViewCatalog, SceneKeyAndCameraText) {
     std::copy(v + 3, v + 6, odd.target);
     odd.fov_deg = v[6];
     Camera back;
-    std::string err;
-    ASSERT_TRUE(parse_camera(format_camera(odd), back, err)) << err << " " << format_camera(odd);
+    const Result r = parse_camera(format_camera(odd), back);
+    ASSERT_TRUE(r.ok()) << r.message << " " << format_camera(odd);
     for (int a = 0; a < 3; ++a) {
         EXPECT_EQ(back.eye[a], odd.eye[a]);
         EXPECT_EQ(back.target[a], odd.target[a]);
@@ -211,8 +225,8 @@ constexpr Box kEnclosed[] = {
 
 ViewCatalog shipped() {
     ViewCatalog c;
-    std::string err;
-    EXPECT_TRUE(ViewCatalog::load(std::string(CWBVH_SOURCE_DIR) + "/views/catalog.txt", c, err)) << err;
+    const Result r = ViewCatalog::load(std::string(CWBVH_SOURCE_DIR) + "/views/catalog.txt", c);
+    EXPECT_TRUE(r.ok()) << r.message;
     return c;
 }
 
@@ -231,10 +245,11 @@ TEST(ShippedViewCatalog, ParsesWithOneToThreeViewsPerScene) {
 TEST(ShippedViewCatalog, KeepsTheViewsOfTheMeasuredGpuFigures) {
     const ViewCatalog c = shipped();
     View v;
-    std::string err;
-    ASSERT_TRUE(c.find("sponza_dabrovic", "1", v, err)) << err;
+    Result r = c.find("sponza_dabrovic", "1", v);
+    ASSERT_TRUE(r.ok()) << r.message;
     EXPECT_EQ(format_camera(v.camera), "-12,3,0,10,5,0,70");
-    ASSERT_TRUE(c.find("oa_oacmpctf3", "1", v, err)) << err;
+    r = c.find("oa_oacmpctf3", "1", v);
+    ASSERT_TRUE(r.ok()) << r.message;
     EXPECT_EQ(format_camera(v.camera), "0,-1000,500,0,1000,500,80");
 }
 

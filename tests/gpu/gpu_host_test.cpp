@@ -87,10 +87,10 @@ TEST(GpuNoDevice, EntryPointsFailCleanly) {
     if (gpu_available(why)) GTEST_SKIP() << "a CUDA device is present";
     EXPECT_FALSE(why.empty());
     SceneData sd = make_synthetic_scene();
-    std::string error;
     auto ds = DeviceScene::upload(sd.nodes.data(), sd.nodes.size(), sd.triangles.data(), sd.triangles.size(),
-                                  sd.bvh2.data(), sd.bvh2.size(), error);
-    EXPECT_FALSE(ds.has_value());
+                                  sd.bvh2.data(), sd.bvh2.size());
+    EXPECT_FALSE(ds.ok());
+    const std::string& error = ds.error().message;
     EXPECT_NE(error.find("cuda"), std::string::npos) << error;
     cwbvh_device_scene* out = reinterpret_cast<cwbvh_device_scene*>(0x1);
     char msg[256];
@@ -142,10 +142,9 @@ TEST(GpuTrace, MatchesCpuOnSyntheticScene) {
     SyntheticOptions so;
     so.triangles = 3000;
     SceneData sd = make_synthetic_scene(so);
-    std::string error;
     auto ds = DeviceScene::upload(sd.nodes.data(), sd.nodes.size(), sd.triangles.data(), sd.triangles.size(),
-                                  sd.bvh2.data(), sd.bvh2.size(), error);
-    ASSERT_TRUE(ds.has_value()) << error;
+                                  sd.bvh2.data(), sd.bvh2.size());
+    ASSERT_TRUE(ds.ok()) << ds.error().message;
     // Rays from above the grid, straight down and oblique, plus invalid ones.
     std::vector<Ray> rays;
     for (int i = 0; i < 20000; ++i) {

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "../result_util.h"
 #include "cwbvh/compiler/import.h"
 
 namespace cwbvh::compiler::test {
@@ -49,7 +50,7 @@ inline Result import_files(const std::vector<std::string>& paths, bool permissiv
     Result r;
     ImportOptions options;
     options.permissive = permissive;
-    r.ok = import_scene(paths, options, r.scene, r.error, r.warnings);
+    r.ok = ::cwbvh::test::ok(import_scene(paths, options, r.scene, r.warnings), r.error);
     return r;
 }
 

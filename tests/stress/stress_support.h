@@ -24,6 +24,7 @@
 #include <random>
 #include <vector>
 
+#include "../result_util.h"
 #include "cwbvh/compiler/compile.h"
 #include "cwbvh/loader/loader.h"
 #include "cwbvh/oracle/oracle.h"
@@ -44,7 +45,8 @@ inline std::string write_obj(const Mesh& m, const std::string& name) {
     const std::string path = (temp_dir() / (name + ".obj")).string();
     FILE* f = std::fopen(path.c_str(), "w");
     if (!f) return {};
-    for (size_t i = 0; i + 2 < m.v.size(); i += 3) std::fprintf(f, "v %.9g %.9g %.9g\n", m.v[i], m.v[i + 1], m.v[i + 2]);
+    for (size_t i = 0; i + 2 < m.v.size(); i += 3)
+        std::fprintf(f, "v %.9g %.9g %.9g\n", m.v[i], m.v[i + 1], m.v[i + 2]);
     for (size_t i = 0; i + 2 < m.idx.size(); i += 3)
         std::fprintf(f, "f %u %u %u\n", m.idx[i] + 1, m.idx[i + 1] + 1, m.idx[i + 2] + 1);
     std::fclose(f);
@@ -59,7 +61,7 @@ inline bool compile_and_open(const std::string& input, const std::string& name, 
     o.keep_sbvh = true;
     o.threads = 2;
     compiler::CompileStats stats;
-    if (!compiler::compile(o, stats, error)) return false;
+    if (!::cwbvh::test::ok(compiler::compile(o, stats), error)) return false;
     auto f = File::open(o.output);
     if (!f.ok()) {
         error = f.error().describe();
@@ -86,8 +88,8 @@ public:
         RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
         float* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
                                                                3 * sizeof(float), prims_.size() * 3));
-        unsigned* idx = static_cast<unsigned*>(
-            rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), prims_.size()));
+        unsigned* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                       3 * sizeof(unsigned), prims_.size()));
         for (size_t i = 0; i < prims_.size(); ++i) {
             for (int a = 0; a < 3; ++a) {
                 v[(i * 3 + 0) * 3 + a] = prims_[i]->v0[a];
@@ -282,7 +284,8 @@ inline void classify_closest(const Ray& r, const Hit& h, const test::OracleResul
 }
 
 /// Any-hit check: hit/miss must agree; a reported prim must be hit in range.
-inline void classify_any(const Ray& r, const Hit& h, const test::OracleResult& o, const CulledOracle& oracle, Tally& s) {
+inline void classify_any(const Ray& r, const Hit& h, const test::OracleResult& o, const CulledOracle& oracle,
+                         Tally& s) {
     ++s.rays;
     if (o.hit) ++s.oracle_hits;
     if (near_end(r, h, o, oracle)) return void(++s.near_end);
@@ -307,8 +310,8 @@ inline void print_tally_header() {
                 "agree", "ties", "fmiss", "fhit", "wprim", "terr", "maxterr");
 }
 inline void print_tally(const std::string& scene, const std::string& rays, const std::string& method, const Tally& s) {
-    std::printf("%-22s %-10s %-13s %7llu %7llu %6llu %6llu %6llu %6llu %6llu %6llu %8.3g\n", scene.c_str(), rays.c_str(),
-                method.c_str(), (unsigned long long)s.rays, (unsigned long long)s.oracle_hits,
+    std::printf("%-22s %-10s %-13s %7llu %7llu %6llu %6llu %6llu %6llu %6llu %6llu %8.3g\n", scene.c_str(),
+                rays.c_str(), method.c_str(), (unsigned long long)s.rays, (unsigned long long)s.oracle_hits,
                 (unsigned long long)s.agree, (unsigned long long)s.ties, (unsigned long long)s.false_miss,
                 (unsigned long long)s.false_hit, (unsigned long long)s.wrong_prim, (unsigned long long)s.t_error,
                 s.max_t_err);

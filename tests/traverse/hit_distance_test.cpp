@@ -329,7 +329,8 @@ TEST(HitDistance, SponzaCpuBvh2AgreesWithCwbvh) {
     const fs::path cwbvhc = fs::path(CWBVH_BIN_DIR) / "cwbvhc";
     if (!fs::exists(scene)) GTEST_SKIP() << scene << " absent";
     if (!fs::exists(cwbvhc)) GTEST_SKIP() << cwbvhc << " not built";
-    const fs::path out = fs::path(::testing::TempDir()) / ("hit_distance_sponza_" + std::to_string(::getpid()) + ".cwbvh");
+    const fs::path out =
+        fs::path(::testing::TempDir()) / ("hit_distance_sponza_" + std::to_string(::getpid()) + ".cwbvh");
     const std::string cmd = "\"" + cwbvhc.string() + "\" \"" + scene.string() + "\" -o \"" + out.string() +
                             "\" --keep-sbvh > /dev/null 2>&1";
     ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
@@ -359,8 +360,8 @@ TEST(HitDistance, SponzaCpuBvh2AgreesWithCwbvh) {
     }
     // Primary rays from inside the atrium, then a diffuse bounce as gpu_check makes it.
     Camera cam;
-    std::string err;
-    ASSERT_TRUE(parse_camera("-12,3,0,10,5,0,70", cam, err)) << err;
+    const Result camera_ok = parse_camera("-12,3,0,10,5,0,70", cam);
+    ASSERT_TRUE(camera_ok.ok()) << camera_ok.message;
     const std::vector<Ray> primary = camera_rays(cam, 320, 240);
     std::vector<Hit> hits;
     const Tally tp = check(f.nodes, f.bvh2, f.tris, primary, false, &hits);

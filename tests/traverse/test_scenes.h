@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "../result_util.h"
 #include "cwbvh/compiler/core.h"
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/node_decode.h"
@@ -58,7 +59,7 @@ inline compiler::EmitResult core_compile(const std::vector<TriangleRecord>& tris
     options.emit.bvh2 = bvh2;
     compiler::EmitResult out;
     std::string error;
-    if (!compiler::compile_scene(core_scene(tris), options, out, error))
+    if (!::cwbvh::test::ok(compiler::compile_scene(core_scene(tris), options, out), error))
         throw std::runtime_error("test scene: the compiler core failed: " + error);
     return out;
 }

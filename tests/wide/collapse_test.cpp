@@ -5,6 +5,7 @@
 #include <cmath>
 #include <set>
 
+#include "../result_util.h"
 #include "cwbvh/compiler/collapse.h"
 #include "wide/wide_test_util.h"
 
@@ -59,14 +60,16 @@ TEST(Collapse, DpMatchesBruteForceOnTinyTrees) {
     for (uint32_t seed = 1; seed <= 60; ++seed) {
         const size_t n = 2 + seed % 11;  // 2..12 leaves
         const Scene scene = wide_test::random_scene(n, seed, 10.0f, 3.0f);
-        const SplitMode mode = seed % 3 == 0 ? SplitMode::kMedian : seed % 3 == 1 ? SplitMode::kRandom : SplitMode::kChain;
+        const SplitMode mode = seed % 3 == 0   ? SplitMode::kMedian
+                               : seed % 3 == 1 ? SplitMode::kRandom
+                                               : SplitMode::kChain;
         const BinaryBvh binary = wide_test::build_binary(scene, mode, seed);
         for (float c_prim : {0.3f, 1.0f, 0.05f}) {
             CollapseConfig cfg;
             cfg.cost_prim = c_prim;
             WideBvh wide;
             std::string error;
-            ASSERT_TRUE(collapse_wide(binary, cfg, wide, error)) << error;
+            ASSERT_TRUE(::cwbvh::test::ok(collapse_wide(binary, cfg, wide), error)) << error;
             check_structure(binary, wide, n);
             const double root_area = binary.nodes[0].box.half_area();
             const double dp = sah_cost_wide(wide, cfg.cost_node, cfg.cost_prim) * root_area;
@@ -74,7 +77,7 @@ TEST(Collapse, DpMatchesBruteForceOnTinyTrees) {
             EXPECT_NEAR(dp, brute, 1e-9 * brute) << "seed " << seed << " n " << n << " c_prim " << c_prim;
             cfg.kind = kCollapseGreedy;
             WideBvh greedy;
-            ASSERT_TRUE(collapse_wide(binary, cfg, greedy, error)) << error;
+            ASSERT_TRUE(::cwbvh::test::ok(collapse_wide(binary, cfg, greedy), error)) << error;
             check_structure(binary, greedy, n);
             EXPECT_GE(sah_cost_wide(greedy, cfg.cost_node, cfg.cost_prim) * root_area, dp * (1 - 1e-12));
             ++trees;
@@ -93,7 +96,7 @@ TEST(Collapse, DpMatchesBruteForceWithDuplicateReferences) {
         const BinaryBvh binary = wide_test::build_binary(scene, refs, SplitMode::kRandom, seed);
         WideBvh wide;
         std::string error;
-        ASSERT_TRUE(collapse_wide(binary, CollapseConfig{}, wide, error)) << error;
+        ASSERT_TRUE(::cwbvh::test::ok(collapse_wide(binary, CollapseConfig{}, wide), error)) << error;
         check_structure(binary, wide, n);
         const double dp = sah_cost_wide(wide, 1.0f, 0.3f) * binary.nodes[0].box.half_area();
         // Same float constants as the config (0.3f is not 0.3).
@@ -107,7 +110,7 @@ TEST(Collapse, DuplicatesInOneLeafAreStoredOnce) {
     for (CollapseKind kind : {kCollapseOptimal, kCollapseGreedy}) {
         WideBvh wide;
         std::string error;
-        ASSERT_TRUE(collapse_wide(binary, config_of(kind), wide, error)) << error;
+        ASSERT_TRUE(::cwbvh::test::ok(collapse_wide(binary, config_of(kind), wide), error)) << error;
         // Root forced internal over (leaf 0) and (leaf 0, leaf 0): two leaves,
         // the second holding its two references of triangle 0 once.
         ASSERT_EQ(wide.nodes.size(), 1u);
@@ -125,7 +128,7 @@ TEST(Collapse, RootIsAlwaysInternal) {
         for (CollapseKind kind : {kCollapseOptimal, kCollapseGreedy}) {
             WideBvh wide;
             std::string error;
-            ASSERT_TRUE(collapse_wide(binary, config_of(kind), wide, error)) << error;
+            ASSERT_TRUE(::cwbvh::test::ok(collapse_wide(binary, config_of(kind), wide), error)) << error;
             ASSERT_EQ(wide.nodes.size(), 1u) << n;
             const WideNode& root = wide.nodes[0];
             // One triangle: a single leaf child. More: the DP gives every
@@ -148,7 +151,7 @@ TEST(Collapse, DeepChainIsIterative) {
     for (CollapseKind kind : {kCollapseOptimal, kCollapseGreedy}) {
         WideBvh wide;
         std::string error;
-        ASSERT_TRUE(collapse_wide(binary, config_of(kind), wide, error)) << error;
+        ASSERT_TRUE(::cwbvh::test::ok(collapse_wide(binary, config_of(kind), wide), error)) << error;
         check_structure(binary, wide, n);
     }
 }
@@ -158,26 +161,26 @@ TEST(Collapse, RejectsMalformedBinaryTrees) {
     const BinaryBvh good = wide_test::build_binary(scene);
     WideBvh wide;
     std::string error;
-    EXPECT_FALSE(collapse_wide(BinaryBvh{}, CollapseConfig{}, wide, error));
+    EXPECT_FALSE(::cwbvh::test::ok(collapse_wide(BinaryBvh{}, CollapseConfig{}, wide), error));
     BinaryBvh bad = good;
     bad.nodes[0].child[1] = 99999;
-    EXPECT_FALSE(collapse_wide(bad, CollapseConfig{}, wide, error));
+    EXPECT_FALSE(::cwbvh::test::ok(collapse_wide(bad, CollapseConfig{}, wide), error));
     EXPECT_NE(error.find("bad child index"), std::string::npos) << error;
     bad = good;
     bad.nodes[0].child[1] = bad.nodes[0].child[0];
-    EXPECT_FALSE(collapse_wide(bad, CollapseConfig{}, wide, error));
+    EXPECT_FALSE(::cwbvh::test::ok(collapse_wide(bad, CollapseConfig{}, wide), error));
     bad = good;
     bad.nodes[3].box.lo[1] = std::nanf("");
-    EXPECT_FALSE(collapse_wide(bad, CollapseConfig{}, wide, error));
+    EXPECT_FALSE(::cwbvh::test::ok(collapse_wide(bad, CollapseConfig{}, wide), error));
     bad = good;
     bad.nodes.push_back(bad.nodes.back());  // unreachable node
-    EXPECT_FALSE(collapse_wide(bad, CollapseConfig{}, wide, error));
+    EXPECT_FALSE(::cwbvh::test::ok(collapse_wide(bad, CollapseConfig{}, wide), error));
     CollapseConfig cfg;
     cfg.max_leaf = 4;
-    EXPECT_FALSE(collapse_wide(good, cfg, wide, error));
+    EXPECT_FALSE(::cwbvh::test::ok(collapse_wide(good, cfg, wide), error));
     cfg = CollapseConfig{};
     cfg.kind = CollapseKind(7);
-    EXPECT_FALSE(collapse_wide(good, cfg, wide, error));
+    EXPECT_FALSE(::cwbvh::test::ok(collapse_wide(good, cfg, wide), error));
 }
 
 TEST(Collapse, DpBeatsGreedyOnRandomScene) {
@@ -185,8 +188,8 @@ TEST(Collapse, DpBeatsGreedyOnRandomScene) {
     const BinaryBvh binary = wide_test::build_binary(scene);
     WideBvh dp, greedy;
     std::string error;
-    ASSERT_TRUE(collapse_wide(binary, config_of(kCollapseOptimal), dp, error)) << error;
-    ASSERT_TRUE(collapse_wide(binary, config_of(kCollapseGreedy), greedy, error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(collapse_wide(binary, config_of(kCollapseOptimal), dp), error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(collapse_wide(binary, config_of(kCollapseGreedy), greedy), error)) << error;
     // The DP minimises SAH, not the node count (which can come out either way).
     EXPECT_LT(sah_cost_wide(dp, 1, 0.3f), sah_cost_wide(greedy, 1, 0.3f));
     EXPECT_GT(wide_avg_children(dp), wide_avg_children(greedy));

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <map>
 
+#include "../result_util.h"
 #include "cwbvh/compiler/auction.h"
 #include "cwbvh/compiler/collapse.h"
 #include "cwbvh/compiler/encode.h"
@@ -27,11 +28,11 @@ void run(const Scene& scene, const BinaryBvh& binary, CollapseKind kind, Pipelin
     CollapseConfig cfg;
     cfg.kind = kind;
     std::string error;
-    ASSERT_TRUE(collapse_wide(p.binary, cfg, p.wide, error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(collapse_wide(p.binary, cfg, p.wide), error)) << error;
     assign_slots(p.wide);
-    ASSERT_TRUE(encode_cwbvh(p.wide, scene, p.tree, error)) << error;
-    ASSERT_TRUE(verify_encoded(p.tree, p.wide, scene, error)) << error;
-    ASSERT_TRUE(encode_bvh2(p.binary, p.wide, p.tree, p.tree.bvh2, error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(encode_cwbvh(p.wide, scene, p.tree), error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(verify_encoded(p.tree, p.wide, scene), error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(encode_bvh2(p.binary, p.wide, p.tree, p.tree.bvh2), error)) << error;
 }
 
 void expect_bvh2_is_cut_at_wide_leaves(const Scene& scene, const Pipeline& p);
@@ -60,8 +61,8 @@ TEST(Encode, MetaImaskAndBases) {
         if (c.kind != WideChild::kEmpty) root.box.grow(c.box);
     EncodedTree tree;
     std::string error;
-    ASSERT_TRUE(encode_cwbvh(wide, scene, tree, error)) << error;
-    ASSERT_TRUE(verify_encoded(tree, wide, scene, error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(encode_cwbvh(wide, scene, tree), error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(verify_encoded(tree, wide, scene), error)) << error;
     ASSERT_EQ(tree.nodes.size(), 3u);
     const CwbvhNode& r = tree.nodes[0];
     EXPECT_EQ(r.imask, 0x12);
@@ -232,16 +233,16 @@ TEST(Encode, VerifyDetectsCorruption) {
             break;
         }
     }
-    EXPECT_FALSE(verify_encoded(bad, p.wide, scene, error));
+    EXPECT_FALSE(::cwbvh::test::ok(verify_encoded(bad, p.wide, scene), error));
     bad = p.tree;
     bad.nodes[0].imask ^= 1;
-    EXPECT_FALSE(verify_encoded(bad, p.wide, scene, error));
+    EXPECT_FALSE(::cwbvh::test::ok(verify_encoded(bad, p.wide, scene), error));
     bad = p.tree;
     bad.triangles[0].v1[2] += 1.0f;
-    EXPECT_FALSE(verify_encoded(bad, p.wide, scene, error));
+    EXPECT_FALSE(::cwbvh::test::ok(verify_encoded(bad, p.wide, scene), error));
     bad = p.tree;
     bad.nodes[0].e[1] = 0;
-    EXPECT_FALSE(verify_encoded(bad, p.wide, scene, error));
+    EXPECT_FALSE(::cwbvh::test::ok(verify_encoded(bad, p.wide, scene), error));
 }
 
 TEST(Encode, DeterministicBytes) {
@@ -277,12 +278,12 @@ TEST(Encode, RejectsBadInput) {
     EncodedTree t;
     Scene small = scene;
     small.indices.resize(5);
-    EXPECT_FALSE(encode_cwbvh(p.wide, small, t, error));
+    EXPECT_FALSE(::cwbvh::test::ok(encode_cwbvh(p.wide, small, t), error));
     WideBvh bad = p.wide;
     bad.nodes[0].slots[0].kind = WideChild::kLeaf;
     bad.nodes[0].slots[0].ref_count = 4;
-    EXPECT_FALSE(encode_cwbvh(bad, scene, t, error));
-    EXPECT_FALSE(encode_cwbvh(WideBvh{}, scene, t, error));
+    EXPECT_FALSE(::cwbvh::test::ok(encode_cwbvh(bad, scene, t), error));
+    EXPECT_FALSE(::cwbvh::test::ok(encode_cwbvh(WideBvh{}, scene, t), error));
 }
 
 TEST(Encode, Bunny) {

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <random>
 
+#include "../result_util.h"
 #include "cwbvh/compiler/quantize.h"
 #include "cwbvh/format/node_decode.h"
 
@@ -102,7 +103,7 @@ TEST(Quantize, PropertyRandomBoxes) {
         }
         CwbvhNode node{};
         std::string error;
-        ASSERT_TRUE(quantize_node(boxes, used, node, error)) << error;
+        ASSERT_TRUE(::cwbvh::test::ok(quantize_node(boxes, used, node), error)) << error;
         check_node(boxes, used, node, failures);
         for (int a = 0; a < 3; ++a) zero_axes += node.e[a] == 1;
     }
@@ -147,7 +148,7 @@ TEST(Quantize, ZeroExtentAxis) {
     }
     CwbvhNode node{};
     std::string error;
-    ASSERT_TRUE(quantize_node(boxes, 0x07, node, error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(quantize_node(boxes, 0x07, node), error)) << error;
     EXPECT_EQ(node.e[1], 1);
     EXPECT_EQ(node.e[2], 1);
     for (int s = 0; s < 8; ++s) {
@@ -168,7 +169,7 @@ TEST(Quantize, TinyBoxesClampToSmallestExponent) {
     boxes[5].hi = {1e-44f, 1e-45f, 0.0f};
     CwbvhNode node{};
     std::string error;
-    ASSERT_TRUE(quantize_node(boxes, 0x21, node, error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(quantize_node(boxes, 0x21, node), error)) << error;
     uint64_t failures = 0;
     check_node(boxes, 0x21, node, failures);
     EXPECT_EQ(failures, 0u);
@@ -190,7 +191,7 @@ TEST(Quantize, FarFromOriginSmallDetail) {
         }
         CwbvhNode node{};
         std::string error;
-        ASSERT_TRUE(quantize_node(boxes, 0xFF, node, error)) << error;
+        ASSERT_TRUE(::cwbvh::test::ok(quantize_node(boxes, 0xFF, node), error)) << error;
         check_node(boxes, 0xFF, node, failures);
     }
     EXPECT_EQ(failures, 0u);
@@ -202,17 +203,17 @@ TEST(Quantize, HugeExtentsEncodeUpTo2Pow125AndRejectOverflow) {
     boxes[0].hi = {0x1p125f, 0.0f, 0x1p125f};
     CwbvhNode node{};
     std::string error;
-    ASSERT_TRUE(quantize_node(boxes, 0x01, node, error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(quantize_node(boxes, 0x01, node), error)) << error;
     uint64_t failures = 0;
     check_node(boxes, 0x01, node, failures);
     EXPECT_EQ(failures, 0u);
     boxes[0].lo = {-3e38f, 0.0f, 0.0f};
     boxes[0].hi = {3e38f, 1.0f, 1.0f};
-    EXPECT_FALSE(quantize_node(boxes, 0x01, node, error));
+    EXPECT_FALSE(::cwbvh::test::ok(quantize_node(boxes, 0x01, node), error));
     EXPECT_NE(error.find("cannot be encoded"), std::string::npos);
     boxes[0].hi[0] = std::nanf("");
-    EXPECT_FALSE(quantize_node(boxes, 0x01, node, error));
-    EXPECT_FALSE(quantize_node(boxes, 0x00, node, error));
+    EXPECT_FALSE(::cwbvh::test::ok(quantize_node(boxes, 0x01, node), error));
+    EXPECT_FALSE(::cwbvh::test::ok(quantize_node(boxes, 0x00, node), error));
 }
 
 TEST(Quantize, RoundingDirection) {

@@ -5,6 +5,7 @@
 
 #include <filesystem>
 
+#include "../result_util.h"
 #include "cwbvh/compiler/auction.h"
 #include "cwbvh/compiler/build.h"
 #include "cwbvh/compiler/collapse.h"
@@ -39,7 +40,7 @@ TEST(SahReport, HandComputedOnGridAlignedBoxes) {
     wide.nodes[0].box.grow(wide.nodes[1].box);
     EncodedTree tree;
     std::string error;
-    ASSERT_TRUE(encode_cwbvh(wide, scene, tree, error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(encode_cwbvh(wide, scene, tree), error)) << error;
     const double root = 3.0 * 255 * 255;  // half area of [0,255]^3
     const WideSahParts parts = report_sah_wide_parts(tree.nodes, wide.nodes[0].box);
     EXPECT_DOUBLE_EQ(parts.internal, 1.0 + 3.0 * 110 * 110 / root);
@@ -64,9 +65,9 @@ TEST(SahReport, DecodedTermsBoundTheExactOnes) {
                 WideBvh wide;
                 EncodedTree tree;
                 std::string error;
-                ASSERT_TRUE(collapse_wide(binary, cfg, wide, error)) << error;
+                ASSERT_TRUE(::cwbvh::test::ok(collapse_wide(binary, cfg, wide), error)) << error;
                 assign_slots(wide);
-                ASSERT_TRUE(encode_cwbvh(wide, scene, tree, error)) << error;
+                ASSERT_TRUE(::cwbvh::test::ok(encode_cwbvh(wide, scene, tree), error)) << error;
                 const Aabb& root = wide.nodes[0].box;
                 const WideSahParts parts = report_sah_wide_parts(tree.nodes, root);
                 EXPECT_EQ(report_sah_wide(tree.nodes, root), parts.total);
@@ -91,7 +92,7 @@ TEST(SahReport, BunnyCostModelMatchingTheReportLowersIt) {
     ASSERT_TRUE(wide_test::read_obj(path, scene));
     BinaryBvh binary;
     std::string error;
-    ASSERT_TRUE(build_sbvh(scene, SbvhConfig{}, binary, error)) << error;
+    ASSERT_TRUE(::cwbvh::test::ok(build_sbvh(scene, SbvhConfig{}, binary), error)) << error;
     double report[2], exact[2], children[2];
     const float c_prims[2] = {0.3f, 1.0f};
     for (int k = 0; k < 2; ++k) {
@@ -99,9 +100,9 @@ TEST(SahReport, BunnyCostModelMatchingTheReportLowersIt) {
         cfg.cost_prim = c_prims[k];
         WideBvh wide;
         EncodedTree tree;
-        ASSERT_TRUE(collapse_wide(binary, cfg, wide, error)) << error;
+        ASSERT_TRUE(::cwbvh::test::ok(collapse_wide(binary, cfg, wide), error)) << error;
         assign_slots(wide);
-        ASSERT_TRUE(encode_cwbvh(wide, scene, tree, error)) << error;
+        ASSERT_TRUE(::cwbvh::test::ok(encode_cwbvh(wide, scene, tree), error)) << error;
         report[k] = report_sah_wide(tree.nodes, binary.nodes[0].box);
         exact[k] = sah_cost_wide(wide, 1, 1);
         children[k] = tree.avg_children;

@@ -34,7 +34,8 @@ void print_hist(const char* name, const uint64_t (&h)[33]) {
 int run_model(int argc, char** argv) {
     const char* usage =
         "usage: cwbvh model FILE --rays RAYS [--bvh2|--bvh2-2009] [--any] [--fast] [--warps N] [--no-postpone] "
-        "[--postpone-percent P] [--postpone-with-node-work] [--no-dynamic-fetch] [--nd N] [--nw N] [--shared-entries N] [--node-instructions N] [--tri-instructions N] [--check]";
+        "[--postpone-percent P] [--postpone-with-node-work] [--no-dynamic-fetch] [--nd N] [--nw N] [--shared-entries "
+        "N] [--node-instructions N] [--tri-instructions N] [--check]";
     const char* path = nullptr;
     const char* rays_path = nullptr;
     bool bvh2 = false, check = false;
@@ -99,8 +100,7 @@ int run_model(int argc, char** argv) {
     if (bvh2 && file->bvh2().empty())
         return error(kExitBadInput, (std::string(path) + ": no BVH2 section (compile with --keep-sbvh)").c_str());
     std::vector<Ray> rays;
-    std::string err;
-    if (!read_ray_file(rays_path, rays, err)) return error(kExitBadInput, err.c_str());
+    if (const Result r = read_ray_file(rays_path, rays); !r.ok()) return error(kExitBadInput, r.message.c_str());
 
     std::vector<Hit> hits(rays.size());
     const auto tris = file->triangles();

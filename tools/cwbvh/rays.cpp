@@ -61,7 +61,8 @@ int run_rays(int argc, char** argv) {
             if (!camera_text) return error(kExitUsage, "rays: --camera needs a value");
         } else if (a == "--view") {
             view_text = option_value(argc, argv, i);
-            if (!view_text || !*view_text) return error(kExitUsage, "rays: --view needs a view name or a 1-based index");
+            if (!view_text || !*view_text)
+                return error(kExitUsage, "rays: --view needs a view name or a 1-based index");
         } else if (a == "--views") {
             views_path = option_value(argc, argv, i);
             if (!views_path || !*views_path) return error(kExitUsage, "rays: --views needs a catalog path");
@@ -85,21 +86,25 @@ int run_rays(int argc, char** argv) {
     auto file = File::open(path, {true, kMaskNodes | kMaskTriangles | kMaskBounds});
     if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
     Camera cam = default_camera(*file->bounds());
-    std::string err, view_note;
+    std::string view_note;
     const std::string scene = scene_text ? scene_text : scene_key(path);
     if (camera_text) {
-        if (!parse_camera(camera_text, cam, err)) return error(kExitUsage, ("rays: " + err).c_str());
+        if (const Result r = parse_camera(camera_text, cam); !r.ok())
+            return error(kExitUsage, ("rays: " + r.message).c_str());
         view_note = "--camera";
     } else {
         ViewCatalog catalog;
-        const CatalogLoad loaded = load_view_catalog(views_path ? views_path : "", catalog, err);
+        CatalogLoad loaded = CatalogLoad::kError;
+        const Result load = load_view_catalog(views_path ? views_path : "", catalog, loaded);
+        const std::string& err = load.message;
         if (loaded == CatalogLoad::kError || (loaded == CatalogLoad::kAbsent && view_text)) {
             return error(kExitBadInput, ("rays: " + err).c_str());
         } else if (loaded == CatalogLoad::kAbsent) {
             view_note = "default camera (no view catalog: " + err + ")";
         } else if (view_text) {
             View v;
-            if (!catalog.find(scene, view_text, v, err)) return error(kExitUsage, ("rays: --view: " + err).c_str());
+            if (const Result r = catalog.find(scene, view_text, v); !r.ok())
+                return error(kExitUsage, ("rays: --view: " + r.message).c_str());
             cam = v.camera;
             view_note = scene + " " + v.name + " (" + catalog.source() + ":" + std::to_string(v.line) + ")";
         } else if (catalog.has_scene(scene)) {
@@ -120,7 +125,8 @@ int run_rays(int argc, char** argv) {
         DiffuseRays d = diffuse_rays(nodes.data(), nodes.size(), tris.data(), tris.size(), rays, bounce, seed, threads);
         rays = std::move(d.rays);
     }
-    if (!write_ray_file(out, rays.data(), rays.size(), err)) return error(kExitBadInput, err.c_str());
+    if (const Result r = write_ray_file(out, rays.data(), rays.size()); !r.ok())
+        return error(kExitBadInput, r.message.c_str());
     std::printf("%s: %zu %s rays (%ux%u%s, seed %u) -> %s\n", path, rays.size(), kind == 1 ? "primary" : "diffuse",
                 width, height, kind == 2 ? (", bounce " + std::to_string(bounce)).c_str() : "", seed, out);
     return kExitOk;

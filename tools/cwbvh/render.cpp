@@ -64,7 +64,8 @@ int run_render(int argc, char** argv) {
             if (!parse_u32(option_value(argc, argv, i), 0, 1024, threads))
                 return error(kExitUsage, "render: --threads needs an integer in [0, 1024]");
         } else if (a == "--camera") {
-            if (!(camera_text = option_value(argc, argv, i))) return error(kExitUsage, "render: --camera needs a value");
+            if (!(camera_text = option_value(argc, argv, i)))
+                return error(kExitUsage, "render: --camera needs a value");
         } else if (a == "-o" || a == "--output") {
             if (!(out = option_value(argc, argv, i))) return error(kExitUsage, "render: -o needs a path");
         } else if (a.size() > 1 && a[0] == '-') {
@@ -82,7 +83,10 @@ int run_render(int argc, char** argv) {
     const SceneBounds& b = *file->bounds();
     Camera cam = default_camera(b);
     std::string err;
-    if (camera_text && !parse_camera(camera_text, cam, err)) return error(kExitUsage, ("render: " + err).c_str());
+    if (camera_text) {
+        if (const Result r = parse_camera(camera_text, cam); !r.ok())
+            return error(kExitUsage, ("render: " + r.message).c_str());
+    }
 
     const auto nodes = file->nodes();
     const auto tris = file->triangles();
@@ -93,8 +97,8 @@ int run_render(int argc, char** argv) {
     opt.threads = threads;
     opt.test = fast ? TriangleTest::kFast : TriangleTest::kWatertight;
     opt.counters = counters.data();
-    const CpuTraceStats s =
-        trace_cwbvh_cpu(nodes.data(), nodes.size(), tris.data(), tris.size(), rays.data(), hits.data(), rays.size(), opt);
+    const CpuTraceStats s = trace_cwbvh_cpu(nodes.data(), nodes.size(), tris.data(), tris.size(), rays.data(),
+                                            hits.data(), rays.size(), opt);
     double total_seconds = s.seconds;
 
     std::vector<uint8_t> rgb(size_t(width) * height * 3);

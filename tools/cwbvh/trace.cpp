@@ -37,11 +37,12 @@ bool trace_gpu(const File& file, const std::vector<Ray>& rays, std::vector<Hit>&
     o.any = r.any;
     o.kernel = r.bvh2 ? GpuKernel::kBvh2 : GpuKernel::kCwbvh;
     o.test = r.fast ? TriangleTest::kFast : TriangleTest::kWatertight;
-    const GpuTraceResult g = trace_on_gpu(file, rays.data(), hits.data(), rays.size(), o);
-    if (!g.ok) {
-        err = "trace: --gpu: " + g.error;
+    Expected<GpuTraceResult> traced = trace_on_gpu(file, rays.data(), hits.data(), rays.size(), o);
+    if (!traced.ok()) {
+        err = "trace: --gpu: " + traced.error().message;
         return false;
     }
+    const GpuTraceResult& g = traced.value();
     stats = CpuTraceStats{};
     stats.rays = g.rays;
     stats.hits = g.hits;
@@ -120,7 +121,7 @@ int run_trace(int argc, char** argv) {
         return error(kExitBadInput, (std::string(path) + ": no BVH2 section (compile with --keep-sbvh)").c_str());
     std::vector<Ray> rays;
     std::string err;
-    if (!read_ray_file(rays_path, rays, err)) return error(kExitBadInput, err.c_str());
+    if (const Result r = read_ray_file(rays_path, rays); !r.ok()) return error(kExitBadInput, r.message.c_str());
     std::vector<Hit> hits(rays.size());
 
     std::vector<double> secs;
@@ -144,14 +145,16 @@ int run_trace(int argc, char** argv) {
     std::printf("Mrays/s          %.3f\n", median > 0 ? double(s.rays) / median * 1e-6 : 0.0);
     std::printf("nodes/ray        %.2f\n", double(s.nodes_visited) / n);
     std::printf("triangles/ray    %.2f\n", double(s.triangles_tested) / n);
-    if (s.invalid_rays) std::printf("invalid rays     %llu (answered with a miss)\n", (unsigned long long)s.invalid_rays);
+    if (s.invalid_rays)
+        std::printf("invalid rays     %llu (answered with a miss)\n", (unsigned long long)s.invalid_rays);
     if (s.stack_overflows || s.bad_indices) {
         std::printf("stack overflows  %llu\nbad indices      %llu\n", (unsigned long long)s.stack_overflows,
                     (unsigned long long)s.bad_indices);
     }
     if (hits_path) {
         const uint32_t flags = (req.any ? kHitFileAnyHit : 0u) | (req.fast ? 0u : kHitFileWatertight);
-        if (!write_hit_file(hits_path, hits.data(), hits.size(), flags, err)) return error(kExitBadInput, err.c_str());
+        if (const Result r = write_hit_file(hits_path, hits.data(), hits.size(), flags); !r.ok())
+            return error(kExitBadInput, r.message.c_str());
     }
     return (s.stack_overflows || s.bad_indices) ? kExitBadInput : kExitOk;
 }

@@ -257,18 +257,18 @@ int main(int argc, char** argv) {
     }
 
     CompileStats stats;
-    std::string error;
-    bool ok = false;
+    cwbvh::Result result;
     try {
         // All phases in a task arena of --threads; the progress channel only for the phase line.
-        ok = compile(options, stats, error, on_phase, tty ? &progress : nullptr);
+        result = compile(options, stats, on_phase, tty ? &progress : nullptr);
     } catch (const std::bad_alloc&) {
-        error = options.inputs.front() + ": out of memory while compiling";
+        result = cwbvh::Result::fail(cwbvh::Status::kBadInput, 0,
+                                     options.inputs.front() + ": out of memory while compiling");
     }
     if (line) line->stop();  // no phase-line output after this, whatever happened
-    if (!ok) {
+    if (!result.ok()) {
         if (tty) std::fputs("\n", stderr);
-        std::fprintf(stderr, "cwbvhc: error: %s\n", error.c_str());
+        std::fprintf(stderr, "cwbvhc: error: %s\n", result.message.c_str());
         return 1;
     }
     if (!quiet) {

@@ -190,7 +190,8 @@ int usage() {
                  "                       [--cpu-only] [SCENE.cwbvh...]\n"
                  "  rays: every catalog view of each scene (default camera for a scene not in the catalog),\n"
                  "  W x H (default 2048 x 2048) primary rays and diffuse bounces 1-4; R timed runs (default 5).\n"
-                 "  no scene: a synthetic 20k-triangle scene (builds with the compiler only). --cpu-only: generate rays and CPU reference only\n"
+                 "  no scene: a synthetic 20k-triangle scene (builds with the compiler only). --cpu-only: generate "
+                 "rays and CPU reference only\n"
                  "  (exercises everything but the GPU; used where there is no device).\n"
                  "  exit: 0 pass or SKIPPED (no CUDA device), 1 mismatch, 2 usage/IO/CUDA error or unusable device\n");
     return 2;
@@ -214,12 +215,12 @@ void print_table(const std::vector<Row>& rows) {
             std::snprintf(b2m, sizeof b2m, "%llu", (unsigned long long)r.k[1].mismatches);
         }
         if (r.ratio() > 0) std::snprintf(ratio, sizeof ratio, "%.2fx", r.ratio());
-        std::printf("%-18s %-10s %-9s %-7s %9zu %6.1f%% | %8.1f %8s %7s | %6.1f %6.1f %6s %6s | %6llu %6s %5llu %5llu\n",
-                    r.scene.c_str(), r.view.c_str(), r.rays_kind.c_str(), r.query.c_str(), r.rays,
-                    r.rays ? 100.0 * double(r.cpu_hits) / double(r.rays) : 0.0, r.k[0].mrays, b2, ratio,
-                    r.k[0].nodes_per_ray, r.k[0].tris_per_ray, b2n, b2t, (unsigned long long)r.k[0].mismatches, b2m,
-                    (unsigned long long)(r.k[0].ties + r.k[1].ties),
-                    (unsigned long long)(r.k[0].overflows + r.k[1].overflows));
+        std::printf(
+            "%-18s %-10s %-9s %-7s %9zu %6.1f%% | %8.1f %8s %7s | %6.1f %6.1f %6s %6s | %6llu %6s %5llu %5llu\n",
+            r.scene.c_str(), r.view.c_str(), r.rays_kind.c_str(), r.query.c_str(), r.rays,
+            r.rays ? 100.0 * double(r.cpu_hits) / double(r.rays) : 0.0, r.k[0].mrays, b2, ratio, r.k[0].nodes_per_ray,
+            r.k[0].tris_per_ray, b2n, b2t, (unsigned long long)r.k[0].mismatches, b2m,
+            (unsigned long long)(r.k[0].ties + r.k[1].ties), (unsigned long long)(r.k[0].overflows + r.k[1].overflows));
     }
 }
 
@@ -347,8 +348,9 @@ int main(int argc, char** argv) {
     // gets the default camera); a named (--views, $CWBVH_VIEWS) or malformed one is an error.
     ViewCatalog catalog;
     {
-        std::string err;
-        const CatalogLoad loaded = load_view_catalog(views_path, catalog, err);
+        CatalogLoad loaded = CatalogLoad::kError;
+        const Result load = load_view_catalog(views_path, catalog, loaded);
+        const std::string& err = load.message;
         if (loaded == CatalogLoad::kError) {
             std::fprintf(stderr, "cwbvh_gpu_check: error: %s\n", err.c_str());
             return 2;
@@ -416,14 +418,15 @@ int main(int argc, char** argv) {
                 double up_pageable = 0;
                 {
                     auto tmp = DeviceScene::upload(s.nodes.data(), s.nodes.size(), s.tris.data(), s.tris.size(),
-                                                   s.bvh2.data(), s.bvh2.size(), why, uo);
-                    if (!tmp) throw std::runtime_error(why);
+                                                   s.bvh2.data(), s.bvh2.size(), uo);
+                    if (!tmp.ok()) throw std::runtime_error(tmp.error().message);
                     up_pageable = tmp->upload_stats().seconds * 1e3;
                 }
                 uo.method = UploadMethod::kPinnedStaging;
-                ds = DeviceScene::upload(s.nodes.data(), s.nodes.size(), s.tris.data(), s.tris.size(), s.bvh2.data(),
-                                         s.bvh2.size(), why, uo);
-                if (!ds) throw std::runtime_error(why);
+                auto up = DeviceScene::upload(s.nodes.data(), s.nodes.size(), s.tris.data(), s.tris.size(),
+                                              s.bvh2.data(), s.bvh2.size(), uo);
+                if (!up.ok()) throw std::runtime_error(up.error().message);
+                ds = std::move(up.value());
                 std::printf("%s: upload %.1f MiB: pinned staging %.2f ms, pageable cudaMemcpy %.2f ms\n",
                             s.name.c_str(), double(ds->upload_stats().bytes) / 1048576.0,
                             ds->upload_stats().seconds * 1e3, up_pageable);

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <string>
 
+#include "cwbvh/format/status.h"
 #include "cwbvh/compiler/model.h"
 
 namespace cwbvh::compiler {
@@ -58,10 +59,8 @@ struct SbvhConfig {
 /// `progress` (optional) gets the scene's triangle count spread over the
 /// subtrees as they finish: it has advanced by exactly triangle_count() when
 /// this returns true. It never influences the tree.
-[[nodiscard]] bool build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out,
-                              std::string& error, Progress* progress = nullptr);
-[[nodiscard]] bool build_embree(const Scene& scene, const SbvhConfig& config, BinaryBvh& out,
-                                std::string& error);
+Result build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out, Progress* progress = nullptr);
+Result build_embree(const Scene& scene, const SbvhConfig& config, BinaryBvh& out);
 
 /// Spec formula: sum over internal nodes C_node*A(n)/A(root) + sum over leaves
 /// C_prim*A(leaf)/A(root), A = surface area. Returns 0 for an empty tree.
@@ -119,8 +118,7 @@ void chop_triangle_estimate(const std::array<Vec3, 3>& tri, int axis, const floa
 /// `samples` random points (double) on triangles each lie in some reference
 /// box of their triangle (tolerance 1e-12 relative to coordinate magnitude,
 /// far below one float ulp). Returns false with a message on the first failure.
-[[nodiscard]] bool validate_binary_bvh(const Scene& scene, const BinaryBvh& bvh,
-                                       std::string& error, int samples = 4000,
+Result validate_binary_bvh(const Scene& scene, const BinaryBvh& bvh, int samples = 4000,
                                        uint64_t seed = 1);
 
 }  // namespace cwbvh::compiler

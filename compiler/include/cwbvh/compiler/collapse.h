@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "cwbvh/format/status.h"
 #include "cwbvh/compiler/model.h"
 
 namespace cwbvh::compiler {
@@ -26,8 +27,7 @@ struct Progress;
 /// index, shared or unreachable node, empty/non-finite box), bad config.
 /// `progress` (optional) advances by one per binary node, by exactly
 /// binary.nodes.size() when this returns true; it never influences the tree.
-[[nodiscard]] bool collapse_wide(const BinaryBvh& binary, const CollapseConfig& config, WideBvh& out,
-                                 std::string& error, Progress* progress = nullptr);
+Result collapse_wide(const BinaryBvh& binary, const CollapseConfig& config, WideBvh& out, Progress* progress = nullptr);
 
 /// SAH cost of a wide tree, normalised by the root's area (spec formula):
 ///   sum over internal nodes C_node * A(n) / A(root)
@@ -44,8 +44,7 @@ namespace detail {
 /// <=> prim valid, children with larger indices, every non-root node has
 /// exactly one parent, finite non-empty boxes) and counts the leaf references
 /// under every node (saturating at UINT32_MAX).
-[[nodiscard]] bool check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count,
-                                std::string& error);
+Result check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count);
 
 /// Appends a wide leaf made of the binary leaves under `node` (left first,
 /// duplicates removed) to wide.leaf_refs and fills binary_leaf_ref.
@@ -54,18 +53,18 @@ WideChild make_wide_leaf(const BinaryBvh& binary, uint32_t node, WideBvh& wide);
 /// Appends a wide node for binary node `binary_node` and makes it the internal
 /// child in slot `slot` of wide node `parent`; `child` gets its index.
 /// False (error set) when the wide node count would overflow 32 bits.
-[[nodiscard]] bool add_internal_child(const BinaryBvh& binary, uint32_t binary_node, uint32_t parent, int slot,
-                                      WideBvh& out, uint32_t& child, std::string& error);
+Result add_internal_child(const BinaryBvh& binary, uint32_t binary_node, uint32_t parent, int slot,
+                                      WideBvh& out, uint32_t& child);
 
 /// Number of distinct triangles among the binary leaves under `node`
 /// (which must hold at most `limit` references; the answer is then <= limit).
 uint32_t distinct_leaf_triangles(const BinaryBvh& binary, uint32_t node);
 
-bool collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
-                      const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error,
+Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
+                      const std::vector<uint32_t>& ref_count, WideBvh& out,
                       Progress* progress = nullptr);
-bool collapse_greedy(const BinaryBvh& binary, const CollapseConfig& config,
-                     const std::vector<uint32_t>& ref_count, WideBvh& out, std::string& error,
+Result collapse_greedy(const BinaryBvh& binary, const CollapseConfig& config,
+                     const std::vector<uint32_t>& ref_count, WideBvh& out,
                      Progress* progress = nullptr);
 }  // namespace detail
 

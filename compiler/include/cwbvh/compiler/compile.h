@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "cwbvh/format/format.h"
+#include "cwbvh/format/status.h"
 
 namespace cwbvh::compiler {
 
@@ -21,7 +22,7 @@ struct CompileOptions {
     BuilderKind builder = kBuilderSbvh;
     CollapseKind collapse = kCollapseOptimal;
     float split_alpha = 1e-5f;            ///< SBVH overlap threshold (Stich et al. 2009)
-    float max_reference_growth = 0.15f;    ///< SBVH reference budget: references <= (1 + x) * triangles (see SbvhConfig)
+    float max_reference_growth = 0.15f;   ///< SBVH reference budget: references <= (1 + x) * triangles (see SbvhConfig)
     float collapse_cost_prim = 0.3f;      ///< C_prim of the collapse DP (C_node = 1), stored in BILD
     bool keep_sbvh = false;               ///< write the optional BV2L section (binary BVH with leaf ranges)
     bool keep_mesh = false;               ///< write the optional VERT/INDX sections
@@ -57,15 +58,15 @@ struct CompileStats {
 /// Called when a phase starts (done=false) and ends (done=true).
 using PhaseCallback = std::function<void(const std::string& phase, bool done, double seconds)>;
 
-/// Runs the pipeline. On bad input returns false and sets `error` to one line
-/// naming the file and what is wrong.
+/// Runs the pipeline. On bad input returns a failed Result whose message is one
+/// line naming the file and what is wrong.
 /// `progress` (optional, progress.h) is reset before each phase's start callback to the
 /// units that phase counts (sbvh: triangles, collapse: binary nodes, slots: wide nodes;
 /// 0 for import, embree, encode and write, which are not counted) and advanced by the
 /// phase from its worker threads; a counted phase ends with done == total. It is only
 /// ever written: the output file is the same with or without it.
-[[nodiscard]] bool compile(const CompileOptions& options, CompileStats& stats, std::string& error,
-                           const PhaseCallback& on_phase = {}, Progress* progress = nullptr);
+Result compile(const CompileOptions& options, CompileStats& stats, const PhaseCallback& on_phase = {},
+              Progress* progress = nullptr);
 
 /// JSON for --stats-json (keys documented in README).
 std::string stats_to_json(const CompileStats& stats);

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "cwbvh/format/status.h"
 #include "cwbvh/compiler/build.h"
 #include "cwbvh/compiler/emit.h"
 #include "cwbvh/compiler/model.h"
@@ -40,13 +41,11 @@ using PhaseRunner = std::function<bool(const std::string& name, uint64_t units, 
 /// slots, unless a BVH2/BV2L section is written). `out.build_info` holds the
 /// BILD figures (sah_binary included). `progress` (optional) is advanced by the
 /// collapse and the slots as in compile.h; it never changes the output.
-[[nodiscard]] bool compile_binary(const Scene& scene, BinaryBvh& binary, const CoreOptions& options,
-                                  EmitResult& out, std::string& error, const PhaseRunner& run = {},
-                                  Progress* progress = nullptr);
+Result compile_binary(const Scene& scene, BinaryBvh& binary, const CoreOptions& options, EmitResult& out,
+                      const PhaseRunner& run = {}, Progress* progress = nullptr);
 
 /// build_sbvh (options.sbvh) then compile_binary. A scene without triangles
 /// gives the empty scene (spec 3.2: one root without used slots).
-[[nodiscard]] bool compile_scene(const Scene& scene, const CoreOptions& options, EmitResult& out,
-                                 std::string& error);
+Result compile_scene(const Scene& scene, const CoreOptions& options, EmitResult& out);
 
 }  // namespace cwbvh::compiler

@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "cwbvh/format/status.h"
 #include "cwbvh/compiler/encode.h"
 #include "cwbvh/compiler/model.h"
 #include "cwbvh/format/scene_data.h"
@@ -66,19 +67,17 @@ Aabb scene_box(const Scene& scene);
 /// when options->verify, and fills the BILD/BNDS/SRCN/PMAP payloads. A scene
 /// without triangles (wide == nullptr) gives the empty scene of spec 3.2: one
 /// root without used slots, no TRIS, BNDS zeros.
-[[nodiscard]] bool encode_scene(const EmitInput& in, EmitResult& out, std::string& error);
+Result encode_scene(const EmitInput& in, EmitResult& out);
 
 /// The file's sections: NODE, TRIS, PMAP, BNDS, BILD and SRCN always, BVH2/BV2L and
 /// VERT/INDX as chosen. Spans into `scene` and `encoded`.
 SceneSections scene_sections(const Scene& scene, const EmitResult& encoded);
 
 /// Writes the file atomically to `path`. `bytes` gets (section name, payload bytes) in file order.
-[[nodiscard]] bool write_scene(const Scene& scene, const EmitResult& encoded, const std::string& path,
-                               std::vector<std::pair<std::string, uint64_t>>& bytes, uint64_t& file_bytes,
-                               std::string& error);
+Result write_scene(const Scene& scene, const EmitResult& encoded, const std::string& path,
+                               std::vector<std::pair<std::string, uint64_t>>& bytes, uint64_t& file_bytes);
 
 /// The same file's bytes in memory.
-[[nodiscard]] bool scene_bytes(const Scene& scene, const EmitResult& encoded, std::vector<uint8_t>& out,
-                               std::string& error);
+Result scene_bytes(const Scene& scene, const EmitResult& encoded, std::vector<uint8_t>& out);
 
 }  // namespace cwbvh::compiler

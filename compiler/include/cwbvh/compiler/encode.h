@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "cwbvh/format/status.h"
 #include "cwbvh/compiler/model.h"
 #include "cwbvh/format/format.h"
 
@@ -32,7 +33,7 @@ struct EncodedTree {
 /// are close together. Unused bases are 0 (child_base when imask == 0,
 /// tri_base when the node has no leaf child).
 /// c_node/c_prim only feed EncodedTree::sah_wide.
-[[nodiscard]] bool encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, std::string& error,
+Result encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out,
                                 float c_node = 1.0f, float c_prim = 0.3f);
 
 /// BV2L section (binary BVH with leaf ranges, spec 3.6): Aila–Laine 64-byte nodes
@@ -49,15 +50,14 @@ struct EncodedTree {
 /// leaf_ranges = false gives the BVH2 section instead (format 1.0, spec 3.6): the
 /// whole binary tree in the same node order, every binary leaf a leaf child with
 /// ~child = the TRIS record of its reference and leaf_count 0.
-[[nodiscard]] bool encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree& tree,
-                               std::vector<Bvh2Node>& out, std::string& error, bool leaf_ranges = true);
+Result encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTree& tree,
+                               std::vector<Bvh2Node>& out, bool leaf_ranges = true);
 
 /// Self-check: decodes every node and checks that every child's decoded box
 /// contains its exact WideChild box, that meta/imask/bases/indices are
 /// consistent and in range, every node is reached exactly once from the root,
 /// every TRIS record is referenced exactly once and matches the scene, and
 /// every stored triangle of the scene appears in at least one leaf.
-[[nodiscard]] bool verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene& scene,
-                                  std::string& error);
+Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene& scene);
 
 }  // namespace cwbvh::compiler

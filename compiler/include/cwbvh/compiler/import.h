@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "cwbvh/format/status.h"
 #include "cwbvh/compiler/model.h"
 
 namespace cwbvh::compiler {
@@ -30,8 +31,8 @@ struct ImportOptions {
 /// and cleans them into `out` (replaced). Returns false with `error` set to one
 /// line "<file>: <what is wrong>" on bad input; `warnings` gets one line per
 /// warning ("<file>: ..."). Deterministic: same inputs, same Scene.
-[[nodiscard]] bool import_scene(const std::vector<std::string>& paths, const ImportOptions& options,
-                                Scene& out, std::string& error, std::vector<std::string>& warnings);
+Result import_scene(const std::vector<std::string>& paths, const ImportOptions& options,
+                                Scene& out, std::vector<std::string>& warnings);
 
 // ---------------------------------------------------------------------------
 // Stage internals (used by import_scene and by the tests).
@@ -61,21 +62,20 @@ struct RawInput {
 
 /// Per-format readers. Each returns false and sets `error` (without the file
 /// name prefix; import_scene adds it) on bad input.
-[[nodiscard]] bool import_gltf(const std::string& path, const ImportOptions& options, RawInput& out,
-                               std::string& error, std::vector<std::string>& warnings);
-[[nodiscard]] bool import_openmesh(const std::string& path, const ImportOptions& options,
-                                   RawInput& out, std::string& error,
+Result import_gltf(const std::string& path, const ImportOptions& options, RawInput& out,
+                   std::vector<std::string>& warnings);
+Result import_openmesh(const std::string& path, const ImportOptions& options,
+                                   RawInput& out,
                                    std::vector<std::string>& warnings);
-[[nodiscard]] bool import_draco_file(const std::string& path, RawInput& out, std::string& error);
+Result import_draco_file(const std::string& path, RawInput& out);
 
 /// Decodes a Draco mesh (KHR_draco_mesh_compression or a .drc file) into
 /// positions and triangles. `position_id`: the Draco attribute unique id of
 /// the positions, or -1 for "the POSITION attribute". Positions come back as
 /// Draco's dequantized floats.
-[[nodiscard]] bool decode_draco_mesh(const uint8_t* data, size_t size, int position_id,
+Result decode_draco_mesh(const uint8_t* data, size_t size, int position_id,
                                      std::vector<Vec3>& vertices,
-                                     std::vector<std::array<uint32_t, 3>>& triangles,
-                                     std::string& error);
+                                     std::vector<std::array<uint32_t, 3>>& triangles);
 
 /// Largest accepted coordinate magnitude: 2^125. The quantizer of the wide
 /// nodes needs a power-of-two scale 2^(e-127) with e <= 254 covering the
@@ -101,7 +101,6 @@ bool is_degenerate(const Vec3& a, const Vec3& b, const Vec3& c);
 /// indices equal the source's when every vertex is used). Returns false (error
 /// set) for a finite coordinate beyond kMaxCoordinate or a scene exceeding
 /// 32-bit indices.
-[[nodiscard]] bool clean_and_append(const RawInput& input, uint32_t input_index, Scene& scene,
-                                    std::string& error);
+Result clean_and_append(const RawInput& input, uint32_t input_index, Scene& scene);
 
 }  // namespace cwbvh::compiler

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <string>
 
+#include "cwbvh/format/status.h"
 #include "cwbvh/compiler/model.h"
 
 namespace cwbvh::compiler {
@@ -25,7 +26,7 @@ void quantize_interval(float p, uint8_t e, float lo, float hi, uint8_t& q_lo, ui
 /// `used` set (boxes[s]); unused slots get q = 0. The origin p is the lo
 /// corner of the union of the used child boxes. Errors: no used slot,
 /// empty or non-finite child box, exponent out of range / overflow.
-[[nodiscard]] bool quantize_node(const Aabb (&boxes)[8], uint8_t used, CwbvhNode& node, std::string& error);
+Result quantize_node(const Aabb (&boxes)[8], uint8_t used, CwbvhNode& node);
 
 /// The decoded (quantized) box of slot s of an encoded node.
 Aabb decode_child_box(const CwbvhNode& node, int slot);

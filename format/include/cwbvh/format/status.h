@@ -1,9 +1,12 @@
-// Status codes, validation rule IDs and the error value every format/loader
-// function returns. Rule IDs are stable and listed in spec/cwbvh-format.md
-// ("Validation rules"); a test checks that the two lists agree.
+// Status codes, validation rule IDs and the one error type of every cwbvh
+// library: Result (no value) and Expected<T> (a value or a Result). Rule IDs are
+// stable and listed in spec/cwbvh-format.md ("Validation rules"); a test checks
+// that the two lists agree. Errors outside the file format (compiler input, ray
+// files, the GPU) carry rule 0.
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -19,6 +22,10 @@ enum class Status : int {
     kCorrupt = 5,             ///< structure violates the spec
     kChecksumMismatch = 6,    ///< header/table or payload checksum differs
     kInvalidArgument = 7,     ///< caller error (writer input, bad options)
+    // 8 is the C API's CWBVH_ERROR_OUT_OF_MEMORY (no Status of its own).
+    kBadInput = 9,            ///< malformed input other than a .cwbvh file (mesh, ray/hit or view file)
+    kInternal = 10,           ///< a self-check of the compiler's own output failed
+    kDeviceError = 11,        ///< no usable GPU, or a CUDA call failed
 };
 
 /// Short lower-case name ("corrupt", "checksum mismatch", ...).
@@ -106,15 +113,27 @@ inline constexpr uint32_t kIndexCount = 5802;
 inline constexpr uint32_t kNamesTerminator = 5901;
 /// Every rule ID above (a test checks this list against the spec's table).
 inline constexpr uint32_t kAll[] = {
-    kOpenFailed, kNotRegularFile, kEmptyFile, kMapFailed, kWriteFailed, kBadMagic, kTruncatedHeader,
-    kUnsupportedMajor, kHeaderSize, kFileSize, kTableAlignment, kTableOutsideFile, kMetaChecksum,
-    kHeaderFlags, kHeaderReserved, kSectionFlags, kSectionReserved, kSectionAlignment, kSectionSize,
-    kSectionOutsideFile, kSectionOverlapsHeader, kSectionOverlap, kDuplicateSection, kUnknownRequiredSection,
-    kElementSize, kElementCount, kMissingSection, kNonZeroPadding, kSectionChecksum, kNodeExponent, kNodeMeta,
-    kNodeImask, kNodeChildRange, kNodeChildOrder, kNodeParents, kNodeLeafRange, kNodeLeafLayout,
-    kNodeTriangleUse, kNodePlaneOrder, kNodeEmptySlot, kNodeNonFinite, kNodeDepth, kTriPrim, kTriNonFinite,
-    kPmapInput, kPmapRangeEmpty, kPmapRangeOrder, kPmapRangeLimit, kBoundsInvalid, kBuildReserved, kBvh2Child, kBvh2Leaf, kBvh2Reserved, kBvh2NonFinite,
-    kBvh2Parents, kBvh2Depth, kBvh2LeafCount, kBvh2LeafRange, kBvh2InternalCount, kVertNonFinite, kIndexRange, kIndexCount, kNamesTerminator,
+    kOpenFailed,      kNotRegularFile,     kEmptyFile,
+    kMapFailed,       kWriteFailed,        kBadMagic,
+    kTruncatedHeader, kUnsupportedMajor,   kHeaderSize,
+    kFileSize,        kTableAlignment,     kTableOutsideFile,
+    kMetaChecksum,    kHeaderFlags,        kHeaderReserved,
+    kSectionFlags,    kSectionReserved,    kSectionAlignment,
+    kSectionSize,     kSectionOutsideFile, kSectionOverlapsHeader,
+    kSectionOverlap,  kDuplicateSection,   kUnknownRequiredSection,
+    kElementSize,     kElementCount,       kMissingSection,
+    kNonZeroPadding,  kSectionChecksum,    kNodeExponent,
+    kNodeMeta,        kNodeImask,          kNodeChildRange,
+    kNodeChildOrder,  kNodeParents,        kNodeLeafRange,
+    kNodeLeafLayout,  kNodeTriangleUse,    kNodePlaneOrder,
+    kNodeEmptySlot,   kNodeNonFinite,      kNodeDepth,
+    kTriPrim,         kTriNonFinite,       kPmapInput,
+    kPmapRangeEmpty,  kPmapRangeOrder,     kPmapRangeLimit,
+    kBoundsInvalid,   kBuildReserved,      kBvh2Child,
+    kBvh2Leaf,        kBvh2Reserved,       kBvh2NonFinite,
+    kBvh2Parents,     kBvh2Depth,          kBvh2LeafCount,
+    kBvh2LeafRange,   kBvh2InternalCount,  kVertNonFinite,
+    kIndexRange,      kIndexCount,         kNamesTerminator,
 };
 }  // namespace rule
 
@@ -141,5 +160,25 @@ Status status_for_rule(uint32_t rule_id);
 
 /// A failed Result with the status implied by the rule.
 Result fail(uint32_t rule_id, std::string message);
+
+/// A value, or the Result that says why there is none (error().ok() is false).
+template <class T>
+class [[nodiscard]] Expected {
+public:
+    Expected(T value) : value_(std::move(value)) {}
+    Expected(Result error) : error_(std::move(error)) {}
+    bool ok() const { return value_.has_value(); }
+    T& value() { return *value_; }
+    const T& value() const { return *value_; }
+    T& operator*() { return *value_; }
+    const T& operator*() const { return *value_; }
+    T* operator->() { return &*value_; }
+    const T* operator->() const { return &*value_; }
+    const Result& error() const { return error_; }
+
+private:
+    std::optional<T> value_;
+    Result error_;
+};
 
 }  // namespace cwbvh

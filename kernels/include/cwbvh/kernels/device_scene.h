@@ -21,10 +21,10 @@
 
 #include <cstddef>
 #include <cstdint>
-#include <optional>
 #include <string>
 
 #include "cwbvh/format/format.h"
+#include "cwbvh/format/status.h"
 
 namespace cwbvh {
 
@@ -48,18 +48,17 @@ struct UploadStats {
 
 class DeviceScene {
 public:
-    /// Uploads NODE + TRIS (+ File::bvh2(): BV2L, else BVH2) of a validated File. On failure returns nullopt
-    /// and sets error (no GPU, old driver, out of memory, ... with file:line).
-    static std::optional<DeviceScene> upload(const File& file, std::string& error,
-                                             const UploadOptions& options = {});
+    /// Uploads NODE + TRIS (+ File::bvh2(): BV2L, else BVH2) of a validated File. On failure returns
+    /// kInvalidArgument (no NODE, counts past 32 bits) or kDeviceError (no GPU, old driver, out of
+    /// memory, ... with file:line).
+    static Expected<DeviceScene> upload(const File& file, const UploadOptions& options = {});
     /// Same from raw sections (the C API and tests use this). The sections must be
     /// valid (as validated by the loader): the kernels check indices but trust boxes.
     /// bvh2 may be either binary section (a legacy BVH2's leaf_count fields are 0).
     /// (Pointer + count, not std::span: this header is also compiled as C++17 by nvcc.)
-    static std::optional<DeviceScene> upload(const CwbvhNode* nodes, size_t node_count,
-                                             const TriangleRecord* triangles, size_t triangle_count,
-                                             const Bvh2Node* bvh2, size_t bvh2_count, std::string& error,
-                                             const UploadOptions& options = {});
+    static Expected<DeviceScene> upload(const CwbvhNode* nodes, size_t node_count,
+                                        const TriangleRecord* triangles, size_t triangle_count,
+                                        const Bvh2Node* bvh2, size_t bvh2_count, const UploadOptions& options = {});
 
     DeviceScene() = default;
     DeviceScene(DeviceScene&& other) noexcept;

@@ -2,13 +2,14 @@
 // nvcc nor the CUDA headers). Used by `cwbvh trace --gpu`, the minimal renderer
 // and the GPU check. Always linkable: target cwbvh_gpu_trace; in a build without
 // CUDA, gpu_status() returns kNoCuda, gpu_available() false ("built without CUDA")
-// and trace_on_gpu() an error.
+// and trace_on_gpu() a kDeviceError.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
 #include <string>
 
+#include "cwbvh/format/status.h"
 #include "cwbvh/kernels/ray.h"
 #include "cwbvh/kernels/triangle_intersect.h"
 
@@ -26,9 +27,8 @@ struct GpuTraceOptions {
     int device = -1;                           ///< CUDA device; -1: current (0)
 };
 
+/// What a successful trace_on_gpu measured.
 struct GpuTraceResult {
-    bool ok = false;
-    std::string error;           ///< why not ok (no device, driver, no BVH2, CUDA error with file:line)
     std::string device_name;
     double scene_upload_ms = 0;  ///< NODE + TRIS (+ BVH2 for kBvh2) to the device
     double rays_upload_ms = 0;
@@ -62,9 +62,12 @@ GpuStatus gpu_status(std::string& why);
 bool gpu_available(std::string& why);
 
 /// Uploads the scene, the rays, traces, downloads the hits (n records into hits).
-GpuTraceResult trace_on_gpu(const File& file, const Ray* rays, Hit* hits, size_t n, const GpuTraceOptions& options);
+/// kDeviceError (no device, driver, CUDA error with file:line) or kInvalidArgument
+/// (no BVH2 for GpuKernel::kBvh2) on failure.
+Expected<GpuTraceResult> trace_on_gpu(const File& file, const Ray* rays, Hit* hits, size_t n,
+                                      const GpuTraceOptions& options);
 
-inline GpuTraceResult trace_on_gpu(const File& file, const Ray* rays, Hit* hits, size_t n, bool any,
+inline Expected<GpuTraceResult> trace_on_gpu(const File& file, const Ray* rays, Hit* hits, size_t n, bool any,
                                    GpuKernel kind) {
     GpuTraceOptions o;
     o.any = any;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "cwbvh/format/format.h"
+#include "cwbvh/format/status.h"
 #include "cwbvh/kernels/ray.h"
 
 namespace cwbvh {
@@ -25,8 +26,9 @@ struct Camera {
 /// 45-degree vertical field of view.
 Camera default_camera(const SceneBounds& b);
 
-/// "ex,ey,ez,tx,ty,tz,fov" (seven finite numbers, 0 < fov < 180, eye != target).
-[[nodiscard]] bool parse_camera(const std::string& text, Camera& camera, std::string& error);
+/// "ex,ey,ez,tx,ty,tz,fov" (seven finite numbers, 0 < fov < 180, eye != target);
+/// kInvalidArgument with a message starting "--camera: " otherwise.
+Result parse_camera(const std::string& text, Camera& camera);
 
 /// width * height rays through the pixel centres, row 0 at the top, row-major;
 /// unit-length directions, tmin = 0, tmax = +inf. Up is +y (+z when looking along y).

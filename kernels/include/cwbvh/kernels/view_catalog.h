@@ -26,12 +26,11 @@ struct View {
 
 class ViewCatalog {
 public:
-    /// Parses catalog text. On bad input returns false with one line
-    /// "<source>:<line>: <what is wrong>" in `error` (`out` is left unchanged).
-    [[nodiscard]] static bool parse(const std::string& text, const std::string& source, ViewCatalog& out,
-                                    std::string& error);
-    /// Reads and parses `path`; "<path>: cannot read: <reason>" when it cannot be read.
-    [[nodiscard]] static bool load(const std::string& path, ViewCatalog& out, std::string& error);
+    /// Parses catalog text. On bad input returns kBadInput with one line
+    /// "<source>:<line>: <what is wrong>" (`out` is left unchanged).
+    static Result parse(const std::string& text, const std::string& source, ViewCatalog& out);
+    /// Reads and parses `path`; kIoError "<path>: cannot read: <reason>" when it cannot be read.
+    static Result load(const std::string& path, ViewCatalog& out);
 
     const std::string& source() const { return source_; }
     const std::vector<View>& views() const { return views_; }
@@ -39,8 +38,8 @@ public:
     /// The views of `scene` in catalog order; empty when the scene is not in the catalog.
     std::vector<View> views_of(const std::string& scene) const;
     /// `which` is a view name or a 1-based index (decimal digits) among the views of
-    /// `scene`. False with a one-line error naming the scene's views otherwise.
-    [[nodiscard]] bool find(const std::string& scene, const std::string& which, View& out, std::string& error) const;
+    /// `scene`. kInvalidArgument with a one-line message naming the scene's views otherwise.
+    Result find(const std::string& scene, const std::string& which, View& out) const;
 
 private:
     std::string source_;
@@ -54,13 +53,14 @@ std::string default_view_catalog_path();
 enum class CatalogLoad {
     kLoaded,  ///< `out` holds the catalog
     kAbsent,  ///< the compiled-in default catalog does not exist (an installed tool without
-              ///< its source tree): use default cameras; `error` says why
+              ///< its source tree): use default cameras; the returned Result says why
     kError,   ///< a named catalog (--views, $CWBVH_VIEWS) is unreadable, or any catalog is malformed
 };
 
 /// Loads the catalog a tool uses: `path` when non-empty (a --views option), else
-/// default_view_catalog_path(). Only the compiled-in default may be absent.
-CatalogLoad load_view_catalog(const std::string& path, ViewCatalog& out, std::string& error);
+/// default_view_catalog_path(). Only the compiled-in default may be absent. `loaded`
+/// says which case it was; the Result is ok exactly when `loaded` is kLoaded.
+Result load_view_catalog(const std::string& path, ViewCatalog& out, CatalogLoad& loaded);
 
 /// Scene key of a path: the file name without its directories and its last
 /// extension ("scenes/sponza_dabrovic.cwbvh" -> "sponza_dabrovic").

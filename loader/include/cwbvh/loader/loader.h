@@ -27,22 +27,7 @@ struct OpenOptions {
     uint32_t sections = kMaskAll;
 };
 
-/// A value or the Result that explains why there is none.
-template <class T>
-class [[nodiscard]] Expected {
-public:
-    Expected(T value) : value_(std::move(value)) {}
-    Expected(Result error) : error_(std::move(error)) {}
-    bool ok() const { return value_.has_value(); }
-    T& value() { return *value_; }
-    T& operator*() { return *value_; }
-    T* operator->() { return &*value_; }
-    const Result& error() const { return error_; }
-
-private:
-    std::optional<T> value_;
-    Result error_;
-};
+// Expected<T> (a value or a Result) is in cwbvh/format/status.h.
 
 /// A validated, memory-mapped .cwbvh file. Move-only; unmaps on destruction.
 class File {
