@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 namespace cwbvh::compiler {
 namespace detail {
@@ -121,9 +122,9 @@ WideChild make_wide_leaf(const BinaryBvh& binary, uint32_t node, WideBvh& wide) 
         uint32_t k = child.first_ref;
         while (k < wide.leaf_refs.size() && wide.leaf_refs[k] != p) ++k;
         if (k == wide.leaf_refs.size()) wide.leaf_refs.push_back(p);
-        wide.binary_leaf_ref[leaf] = k;
+        if (!wide.binary_leaf_ref.empty()) wide.binary_leaf_ref[leaf] = k;
     });
-    child.ref_count = uint32_t(wide.leaf_refs.size()) - child.first_ref;
+    child.ref_count = uint8_t(wide.leaf_refs.size() - child.first_ref);  // <= max_leaf <= 3
     return child;
 }
 
@@ -156,9 +157,9 @@ Result collapse_wide(const BinaryBvh& binary, const CollapseConfig& config, Wide
         return Result::fail(Status::kInvalidArgument, 0, "collapse: cost model constants must be finite and >= 0");
     std::vector<uint32_t> ref_count;
     if (Result r = detail::check_binary(binary, ref_count); !r.ok()) return r;
-    out.binary_leaf_ref.assign(binary.nodes.size(), kInvalidIndex);
+    if (config.binary_leaf_refs) out.binary_leaf_ref.assign(binary.nodes.size(), kInvalidIndex);
     switch (config.kind) {
-        case kCollapseOptimal: return detail::collapse_optimal(binary, config, ref_count, out, progress);
+        case kCollapseOptimal: return detail::collapse_optimal(binary, config, std::move(ref_count), out, progress);
         case kCollapseGreedy: return detail::collapse_greedy(binary, config, ref_count, out, progress);
     }
     return Result::fail(Status::kInvalidArgument, 0, "collapse: unknown collapse kind");

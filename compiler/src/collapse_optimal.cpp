@@ -37,11 +37,22 @@ namespace {
 
 constexpr int kMaxRoots = kWidth - 1;  // a child subtree of a wide node gets <= 7 roots
 
+/// One node's decisions, packed into 4 bytes (the decisions of every binary
+/// node are the largest array the collapse keeps: 4 instead of 9 bytes per node).
+/// Bits 3(i-1) .. 3(i-1)+2: split(i) for i = 1..7 roots (0 = one root, n itself;
+/// k = k roots to the left child); bits 21..23: internal_split (C_internal: roots
+/// given to the left child, the right gets 8 - k); bit 24: as_leaf (C(n, 1) is
+/// realised by a wide leaf).
 struct Decision {
-    uint8_t split[kMaxRoots];  ///< split[i-1]: 0 = one root (n itself), k = k roots to the left child
-    uint8_t internal_split;    ///< C_internal: roots given to the left child (right gets 8 - k)
-    bool as_leaf;              ///< C(n, 1) is realised by a wide leaf
+    uint32_t bits = 0;
+    int split(int i) const { return int((bits >> (3 * (i - 1))) & 7u); }
+    int internal_split() const { return int((bits >> 21) & 7u); }
+    bool as_leaf() const { return ((bits >> 24) & 1u) != 0; }
+    static uint32_t pack_split(int i, int k) { return uint32_t(k) << (3 * (i - 1)); }
+    static uint32_t pack_internal_split(int k) { return uint32_t(k) << 21; }
+    static uint32_t pack_as_leaf(bool leaf) { return uint32_t(leaf) << 24; }
 };
+static_assert(kMaxRoots == 7 && kWidth == 8, "Decision packs 7 splits of 3 bits and a 3-bit internal split");
 
 struct Costs {
     double c[kMaxRoots];  ///< c[i-1] = C(n, i)
@@ -117,19 +128,14 @@ bool dp_node(const BinaryBvh& binary, const CollapseConfig& config, const std::v
     const double c_node = config.cost_node, c_prim = config.cost_prim;
     const double inf = std::numeric_limits<double>::infinity();
     const BinaryNode& b = binary.nodes[idx];
-    Decision& d = dec[idx];
     Costs out;
     const double area = b.box.half_area();
     const double leaf_cost = ref_count[idx] <= uint32_t(config.max_leaf)
                                  ? c_prim * distinct_leaf_triangles(binary, uint32_t(idx)) * area
                                  : inf;
     if (b.is_leaf()) {
-        for (int i = 0; i < kMaxRoots; ++i) {
-            out.c[i] = leaf_cost;
-            d.split[i] = 0;
-        }
-        d.as_leaf = true;
-        d.internal_split = 0;
+        for (int i = 0; i < kMaxRoots; ++i) out.c[i] = leaf_cost;
+        dec[idx].bits = Decision::pack_as_leaf(true);  // every split 0: one root, the leaf itself
         store.put(uint32_t(idx), out);
         return true;
     }
@@ -145,11 +151,10 @@ bool dp_node(const BinaryBvh& binary, const CollapseConfig& config, const std::v
         }
     }
     const double internal_cost = c_node * area + best_children;
-    d.internal_split = uint8_t(best_k);
     // Ties go to the leaf: same SAH, one node fewer.
-    d.as_leaf = leaf_cost <= internal_cost;
-    out.c[0] = d.as_leaf ? leaf_cost : internal_cost;
-    d.split[0] = 0;
+    const bool as_leaf = leaf_cost <= internal_cost;
+    uint32_t packed = Decision::pack_internal_split(best_k) | Decision::pack_as_leaf(as_leaf);  // split(1) = 0
+    out.c[0] = as_leaf ? leaf_cost : internal_cost;
     for (int i = 2; i <= kMaxRoots; ++i) {
         double best = out.c[0];
         int split = 0;
@@ -161,8 +166,9 @@ bool dp_node(const BinaryBvh& binary, const CollapseConfig& config, const std::v
             }
         }
         out.c[i - 1] = best;
-        d.split[i - 1] = uint8_t(split);
+        packed |= Decision::pack_split(i, split);
     }
+    dec[idx].bits = packed;
     store.put(uint32_t(idx), out);
     return true;
 }
@@ -246,7 +252,7 @@ int wide_roots(const BinaryBvh& binary, const std::vector<Decision>& dp, uint32_
     // expand(m, i): the roots of m's optimal forest of at most i roots.
     // Depth <= 7 (every split hands >= 1 root to each side).
     auto expand = [&](auto&& self, uint32_t m, int i) -> void {
-        const int s = dp[m].split[i - 1];
+        const int s = dp[m].split(i);
         if (s == 0) {
             roots[count++] = m;
             return;
@@ -254,7 +260,7 @@ int wide_roots(const BinaryBvh& binary, const std::vector<Decision>& dp, uint32_
         self(self, binary.nodes[m].child[0], s);
         self(self, binary.nodes[m].child[1], i - s);
     };
-    const int k = dp[n].internal_split;
+    const int k = dp[n].internal_split();
     expand(expand, binary.nodes[n].child[0], k);
     expand(expand, binary.nodes[n].child[1], kWidth - k);
     assert(count >= 2 && count <= kWidth);
@@ -263,9 +269,8 @@ int wide_roots(const BinaryBvh& binary, const std::vector<Decision>& dp, uint32_
 
 }  // namespace
 
-Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
-                      const std::vector<uint32_t>& ref_count, WideBvh& out,
-                      Progress* progress) {
+Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config, std::vector<uint32_t> ref_count,
+                        WideBvh& out, Progress* progress) {
     std::vector<Decision> dp(binary.nodes.size());
     if (!run_dp_parallel(binary, config, ref_count, dp, progress)) {
         // Not in preorder (or a subtree was not): one sweep over any valid order.
@@ -273,10 +278,12 @@ Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
         CostArray array(binary.nodes.size());
         run_dp(binary, config, ref_count, 0, binary.nodes.size(), array, dp, progress);
     }
+    const uint32_t references = ref_count[0];
+    std::vector<uint32_t>().swap(ref_count);  // not needed below: free it before the wide nodes exist
 
     // Backtracking: create wide nodes top-down. Each wide node gets the roots
     // of its binary node's two child forests. A first pass only counts the
-    // wide nodes so that the node array is allocated once (WideNode is 344
+    // wide nodes so that the node array is allocated once (WideNode is 312
     // bytes; growing by doubling had old and new arrays alive together).
     size_t wide_nodes = 1;
     if (!binary.nodes[0].is_leaf()) {
@@ -287,7 +294,7 @@ Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
             pending.pop_back();
             const int count = wide_roots(binary, dp, m, roots);
             for (int c = 0; c < count; ++c) {
-                if (!dp[roots[c]].as_leaf) {
+                if (!dp[roots[c]].as_leaf()) {
                     ++wide_nodes;
                     pending.push_back(roots[c]);
                 }
@@ -295,7 +302,7 @@ Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
         }
     }
     out.nodes.reserve(wide_nodes);
-    out.leaf_refs.reserve(ref_count[0]);  // <= one entry per binary leaf
+    out.leaf_refs.reserve(references);  // <= one entry per binary leaf
 
     struct Work {
         uint32_t binary;
@@ -318,7 +325,7 @@ Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
         uint32_t triangles = 0;
         for (int c = 0; c < count; ++c) {
             const uint32_t m = roots[c];
-            if (dp[m].as_leaf) {
+            if (dp[m].as_leaf()) {
                 out.nodes[w.wide].slots[c] = make_wide_leaf(binary, m, out);
                 triangles += out.nodes[w.wide].slots[c].ref_count;
             } else {

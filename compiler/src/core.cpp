@@ -27,8 +27,10 @@ Result compile_binary(const Scene& scene, BinaryBvh& binary, const CoreOptions& 
 
     WideBvh wide;
     Result r;
+    CollapseConfig collapse = options.collapse;
+    collapse.binary_leaf_refs = options.emit.bvh2 != Bvh2Section::kNone;  // only the BVH2 encoder reads them
     if (!run_phase(run, "collapse", binary.nodes.size(), [&] {
-            r = collapse_wide(binary, options.collapse, wide, progress);
+            r = collapse_wide(binary, collapse, wide, progress);
             return r.ok();
         }))
         return r;

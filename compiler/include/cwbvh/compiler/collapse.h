@@ -60,9 +60,11 @@ Result add_internal_child(const BinaryBvh& binary, uint32_t binary_node, uint32_
 /// (which must hold at most `limit` references; the answer is then <= limit).
 uint32_t distinct_leaf_triangles(const BinaryBvh& binary, uint32_t node);
 
-Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config,
-                      const std::vector<uint32_t>& ref_count, WideBvh& out,
-                      Progress* progress = nullptr);
+/// `ref_count` is taken over and released after the dynamic program (before the
+/// wide nodes are allocated: it is not needed for them, and the peak memory of
+/// the compile is here).
+Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config, std::vector<uint32_t> ref_count,
+                        WideBvh& out, Progress* progress = nullptr);
 Result collapse_greedy(const BinaryBvh& binary, const CollapseConfig& config,
                      const std::vector<uint32_t>& ref_count, WideBvh& out,
                      Progress* progress = nullptr);

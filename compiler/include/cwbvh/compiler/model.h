@@ -83,6 +83,9 @@ struct CollapseConfig {
     float cost_prim = 0.3f;   ///< C_prim: cost of intersecting one triangle
     int max_leaf = kMaxLeafTriangles;
     CollapseKind kind = kCollapseOptimal;
+    /// Fill WideBvh::binary_leaf_ref (4 bytes per binary node), which only the
+    /// BVH2/BV2L encoder reads; the core turns it off when no such section is written.
+    bool binary_leaf_refs = true;
 };
 
 /// 8-wide tree before quantization (Ylitie et al. 2017, section 3.1).
@@ -91,11 +94,12 @@ struct CollapseConfig {
 /// WideBvh::nodes and WideBvh::leaf_refs is only required to be deterministic.
 struct WideChild {
     enum Kind : uint8_t { kEmpty, kInternal, kLeaf } kind = kEmpty;
+    uint8_t ref_count = 0;           ///< kLeaf: 1..3 (after de-duplication)
     Aabb box;                        ///< exact (unquantized) bounds: the collapsed binary node's box
     uint32_t node = kInvalidIndex;   ///< kInternal: index into WideBvh::nodes
     uint32_t first_ref = 0;          ///< kLeaf: first index into WideBvh::leaf_refs
-    uint32_t ref_count = 0;          ///< kLeaf: 1..3 (after de-duplication)
 };
+static_assert(sizeof(WideChild) == 36, "WideChild: 36 bytes (eight per WideNode)");
 struct WideNode {
     Aabb box;                        ///< exact bounds (the binary node this wide node came from)
     std::array<WideChild, 8> slots;
@@ -113,7 +117,8 @@ struct WideBvh {
     std::vector<uint32_t> leaf_refs;
     /// Per binary node: index into leaf_refs of that binary leaf's reference
     /// (kInvalidIndex for internal binary nodes). Two binary leaves with the
-    /// same triangle in the same wide leaf share one entry. Used for BVH2.
+    /// same triangle in the same wide leaf share one entry. Used for BVH2; empty
+    /// when CollapseConfig::binary_leaf_refs is false.
     std::vector<uint32_t> binary_leaf_ref;
 };
 
