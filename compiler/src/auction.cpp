@@ -5,6 +5,7 @@
 #include "cwbvh/compiler/auction.h"
 
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 
 #include <tbb/blocked_range.h>
@@ -41,23 +42,20 @@ void auction_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::a
             int i = 0;  // fixed bidding order: the lowest unassigned person
             while (i < n && object_of[i] >= 0) ++i;
             if (i == n) break;
+            // Best object (ties: the lowest) and the best value among the
+            // others, in one pass: a later object equal to the best only
+            // raises the second value, as in two separate passes.
             int best = 0;
             int64_t v1 = b[i][0] - price[0];
+            int64_t v2 = INT64_MIN;
             for (int j = 1; j < n; ++j) {
                 const int64_t v = b[i][j] - price[j];
-                if (v > v1) {  // ties: lowest object
+                if (v > v1) {
+                    v2 = v1;
                     v1 = v;
                     best = j;
-                }
-            }
-            bool have_second = false;
-            int64_t v2 = 0;
-            for (int j = 0; j < n; ++j) {
-                if (j == best) continue;
-                const int64_t v = b[i][j] - price[j];
-                if (!have_second || v > v2) {
+                } else if (v > v2) {
                     v2 = v;
-                    have_second = true;
                 }
             }
             price[best] += v1 - v2 + eps;  // bid increment >= eps > 0
@@ -92,6 +90,17 @@ std::array<std::array<double, 8>, 8> slot_cost_table(const WideNode& node) {
     return cost;
 }
 
+namespace {
+/// std::llround without the library call: nearest integer, halves away from
+/// zero (|x| <= 2^30 here). x - trunc(x) is exact for such x, so the result is
+/// llround's bit for bit.
+inline int64_t round_half_away(double x) {
+    const double t = std::trunc(x);
+    const double f = x - t;
+    return int64_t(t) + (f >= 0.5 ? 1 : (f <= -0.5 ? -1 : 0));
+}
+}  // namespace
+
 void assign_min_cost(const std::array<std::array<double, 8>, 8>& cost, std::array<int, 8>& slot_of) {
     double max_abs = 0.0;
     for (const auto& row : cost)
@@ -100,7 +109,7 @@ void assign_min_cost(const std::array<std::array<double, 8>, 8>& cost, std::arra
     if (max_abs > 0.0 && std::isfinite(max_abs)) {
         const double scale = std::ldexp(1.0, 30) / max_abs;
         for (int i = 0; i < 8; ++i)
-            for (int j = 0; j < 8; ++j) benefit[i][j] = -std::llround(cost[i][j] * scale);  // maximise -cost
+            for (int j = 0; j < 8; ++j) benefit[i][j] = -round_half_away(cost[i][j] * scale);  // maximise -cost
     }
     auction_assign(benefit, slot_of);
 }
