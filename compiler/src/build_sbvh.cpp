@@ -502,10 +502,7 @@ private:
             object_partition(refs, sorted, object, kids.left, kids.right);
             object_splits_.fetch_add(1, std::memory_order_relaxed);
         }
-        double wl = 0.0, wr = 0.0;
-        for (const Ref& r : kids.left) wl += r.box.half_area();
-        for (const Ref& r : kids.right) wr += r.box.half_area();
-        share_budget(n, kids.left.size(), kids.right.size(), budget, chops, wl, wr, kids);
+        share_budget_of_lists(n, budget, chops, kids);
         RefList().swap(refs);  // free the parent's list before recursing
         return true;
     }
@@ -554,6 +551,14 @@ private:
         kids.budget_left = std::min<uint64_t>(rest, uint64_t(std::floor(double(rest) * share)));
         kids.budget_right = rest - kids.budget_left;
         kids.chops = chops + ((nl == n || nr == n) ? 1 : 0);
+    }
+
+    /// share_budget with the children's lists as made (sums in list order).
+    static void share_budget_of_lists(uint64_t n, uint64_t budget, int chops, Children& kids) {
+        double wl = 0.0, wr = 0.0;
+        for (const Ref& r : kids.left) wl += r.box.half_area();
+        for (const Ref& r : kids.right) wr += r.box.half_area();
+        share_budget(n, kids.left.size(), kids.right.size(), budget, chops, wl, wr, kids);
     }
 
     /// Top of the tree: nodes of at least kTaskRefs references; their two
@@ -660,12 +665,9 @@ private:
             for (size_t i = 0; i < n; ++i) list[i] = s.refs[s.list[i]];
             return list;
         }, kids);
-        double wl = 0.0, wr = 0.0;
         if (spatial) {
             RefList().swap(list);
-            for (const Ref& r : kids.left) wl += r.box.half_area();
-            for (const Ref& r : kids.right) wr += r.box.half_area();
-            share_budget(n, kids.left.size(), kids.right.size(), budget, chops, wl, wr, kids);
+            share_budget_of_lists(n, budget, chops, kids);
             const uint32_t l = build_block(out, kids.left, kids.budget_left, depth + 1, kids.chops);
             const uint32_t r = build_block(out, kids.right, kids.budget_right, depth + 1, kids.chops);
             out[index].child[0] = l;
@@ -677,6 +679,7 @@ private:
         // partition's `left`, in the same order, hence the same sums).
         const int best = object.axis;
         const size_t k = object.index;
+        double wl = 0.0, wr = 0.0;
         bool goes_left[kSweepMaxRefs];
         for (size_t i = 0; i < n; ++i) goes_left[s.order[best][i]] = i < k;
         for (size_t i = 0; i < k; ++i) wl += s.refs[s.order[best][i]].box.half_area();
