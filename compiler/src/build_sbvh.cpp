@@ -410,7 +410,7 @@ const Bins& bin_references(size_t n, int nbins, Fill&& fill, Bins& result) {
 struct BinPlanes {
     float p[kMaxBins + 1];  // p[0..bins]; no heap allocation per pass
     int count = 0;          // bins
-    double scale = 0.0;     // bins / (hi - lo); 0 for a zero-width range
+    float scale = 0.0f;     // ~bins / (hi - lo) (a guess's factor only); 0 for a zero-width range
     int bins() const { return count; }
     const float* data() const { return p; }
     float operator[](int i) const { return p[i]; }
@@ -426,17 +426,20 @@ BinPlanes bin_planes(float lo, float hi, int bins) {
         p[i] = std::clamp(p[i], p[i - 1], hi);
     }
     const double width = double(hi) - double(lo);
-    bp.scale = width > 0.0 ? double(bins) / width : 0.0;
+    // May round to inf for a width of a few denormals: bin_guess clamps.
+    bp.scale = width > 0.0 ? float(double(bins) / width) : 0.0f;
     return bp;
 }
 
 /// First guess of the bin of x (any value in 0..bins-1); bin_of_lo/hi then
-/// step to the exact answer, which is defined by the planes alone.
+/// step to the exact answer, which is defined by the planes alone, so the
+/// guess may be off by rounding (float arithmetic: the dearest part of the
+/// spatial-split search was this function in double).
 inline int bin_guess(const BinPlanes& p, float x) {
-    const int bins = p.bins();
-    const double g = (double(x) - p[0]) * p.scale;
-    if (!(g > 0.0)) return 0;  // also NaN
-    return g >= double(bins - 1) ? bins - 1 : int(g);
+    float g = (x - p[0]) * p.scale;
+    g = g > 0.0f ? g : 0.0f;  // also NaN (inf * 0)
+    const float top = float(p.bins() - 1);
+    return int(g < top ? g : top);
 }
 /// Bin of a lower bound: plane[b] <= x < plane[b+1] (clamped to the bins),
 /// i.e. the number of inner planes plane[1..bins-1] that are <= x.
@@ -456,6 +459,31 @@ inline int bin_of_hi(const BinPlanes& p, float x) {
     while (b > 0 && p[b] >= x) --b;
     while (b < bins - 1 && p[b + 1] < x) ++b;
     return b;
+}
+
+/// A reference's first and last bin along one axis (bins <= kMaxBins).
+struct BinSpan {
+    uint8_t first, last;
+};
+static_assert(kMaxBins <= 256, "BinSpan holds bin indices in 8 bits");
+
+/// When every coarse plane is a fine plane, coarse[i] == fine[i << shift]
+/// (bit-equal floats), a value's coarse bin is its fine bin >> shift: bin_of_lo
+/// counts the inner planes <= x, and for non-decreasing planes those form a
+/// prefix fine[1..k], of which fine[(1..) << shift] are the coarse ones; the
+/// same holds for bin_of_hi (planes < x) and for max(). Returns that shift,
+/// or -1 (bin afresh). bin_planes computes plane i of B bins as
+/// lo + (hi-lo)*i/B in double, and scaling i and B by a power of two scales
+/// the exact product and quotient without changing their rounding, so with
+/// 32 bins and 4 coarse ones the planes do coincide; the check makes the
+/// result independent of that argument.
+int coarse_shift(const BinPlanes& fine, const BinPlanes& coarse) {
+    int shift = 0;
+    while ((coarse.bins() << shift) < fine.bins()) ++shift;
+    if ((coarse.bins() << shift) != fine.bins()) return -1;
+    for (int i = 0; i <= coarse.bins(); ++i)
+        if (!(coarse[i] == fine[i << shift])) return -1;
+    return shift;
 }
 
 class Builder {
@@ -750,17 +778,37 @@ private:
         // n * bins clipped slabs per axis, and a handful of references gains
         // nothing from 32 candidate planes. Depends only on n: deterministic.
         const int nb = int(std::min<size_t>(size_t(config_.bins), std::max<size_t>(4, 2 * n)));
+        // Each reference's first and last bin along the axis, found once by
+        // the lower bound and reused by both binning passes (see coarse_shift).
+        // Serial nodes use this thread's scratch (nothing below waits on TBB);
+        // parallel ones their own array.
+        static thread_local std::vector<BinSpan> span_scratch;
+        std::vector<BinSpan> span_large;
+        std::vector<BinSpan>& spans = n < kParallelBinRefs ? span_scratch : span_large;
+        if (spans.size() < n) spans.resize(n);
         for (int a = 0; a < 3; ++a) {
             if (!(box.hi[a] > box.lo[a])) continue;
+            const BinPlanes fine = bin_planes(box.lo[a], box.hi[a], nb);
             // Exact-enough pruning first: no plane can beat the object split.
-            if (!(spatial_lower_bound(refs, a, bin_planes(box.lo[a], box.hi[a], nb)) < object_cost)) continue;
+            if (!(spatial_lower_bound(refs, a, fine, spans.data()) < object_cost)) continue;
             for (const bool full : {false, true}) {  // coarse pre-check, then all bins
                 const int nbb = full ? nb : std::min(nb, kSpatialGateBins);
                 if (!full && nbb == nb) continue;  // few bins anyway: no pre-check
-                const BinPlanes planes = bin_planes(box.lo[a], box.hi[a], nbb);
+                const BinPlanes planes = full ? fine : bin_planes(box.lo[a], box.hi[a], nbb);
+                const int shift = full ? 0 : coarse_shift(fine, planes);
                 SpatialBins storage;
                 const SpatialBins& bins = bin_references(n, nbb, [&](size_t begin, size_t end, SpatialBins& out) {
-                    for (size_t i = begin; i != end; ++i) bin_reference(refs[i], a, planes, out);
+                    for (size_t i = begin; i != end; ++i) {
+                        int b0, b1;
+                        if (shift >= 0) {
+                            b0 = spans[i].first >> shift;
+                            b1 = spans[i].last >> shift;
+                        } else {  // the coarse planes are not fine planes: bin afresh
+                            b0 = bin_of_lo(planes, refs[i].box.lo[a]);
+                            b1 = std::max(b0, bin_of_hi(planes, refs[i].box.hi[a]));
+                        }
+                        bin_reference(refs[i], a, planes, b0, b1, out);
+                    }
                 }, storage);
                 double gate_cost = std::numeric_limits<double>::infinity();
                 // Entering counts on the left, exiting counts on the right of each plane.
@@ -785,7 +833,9 @@ private:
     /// whose box lies wholly on one side of a plane puts its box there (the
     /// triangle part touches all faces of its box); one that straddles adds
     /// its count to both sides and, as a bound, nothing to either box.
-    double spatial_lower_bound(const RefList& refs, int a, const BinPlanes& planes) const {
+    /// Writes every reference's first and last bin (bin_of_lo, then bin_of_hi
+    /// raised to at least the first) to spans[0..n).
+    double spatial_lower_bound(const RefList& refs, int a, const BinPlanes& planes, BinSpan* spans) const {
         const int nb = planes.bins();
         LowerBoundBins storage;
         const LowerBoundBins& bins = bin_references(
@@ -795,6 +845,7 @@ private:
                     const Aabb& box = refs[i].box;
                     const int b0 = bin_of_lo(planes, box.lo[a]);
                     const int b1 = std::max(b0, bin_of_hi(planes, box.hi[a]));
+                    spans[i] = BinSpan{uint8_t(b0), uint8_t(b1)};
                     merge(out.by_last[size_t(b1)], box);
                     merge(out.by_first[size_t(b0)], box);
                     ++out.enter[size_t(b0)];
@@ -816,9 +867,8 @@ private:
     /// bin planes it spans (clipped against the triangle itself, intersected
     /// with the reference's box); enter/exit counts go to the first/last bin
     /// that really holds part of it.
-    void bin_reference(const Ref& r, int a, const BinPlanes& planes, SpatialBins& bins) const {
-        const int b0 = bin_of_lo(planes, r.box.lo[a]);
-        const int b1 = std::max(b0, bin_of_hi(planes, r.box.hi[a]));
+    /// b0, b1: the reference's first and last bin (bin_of_lo, bin_of_hi).
+    void bin_reference(const Ref& r, int a, const BinPlanes& planes, int b0, int b1, SpatialBins& bins) const {
         if (b0 == b1) {
             merge(bins.box[b0], r.box);
             ++bins.enter[b0];
