@@ -35,6 +35,7 @@
 #include <tbb/task_arena.h>
 #include <tbb/task_group.h>
 
+#include "cwbvh/compiler/box4.h"
 #include "cwbvh/compiler/build.h"
 #include "cwbvh/compiler/progress.h"
 
@@ -173,23 +174,34 @@ Aabb intersect(const Aabb& a, const Aabb& b) {
     return r;
 }
 
+/// Centroid of a box in all lanes: lo * 0.5f + hi * 0.5f, as centroid().
+inline F4 centroid4(const Box4& b) { return b.lo * 0.5f + b.hi * 0.5f; }
+
 struct Bounds {
     Aabb box, centroids;
-    void join(const Bounds& o) { merge(box, o.box); merge(centroids, o.centroids); }
 };
 
 Bounds compute_bounds(const RefList& refs) {
-    auto body = [&](const tbb::blocked_range<size_t>& r, Bounds b) {
+    struct Acc {
+        Box4 box, centroids;
+        void join(const Acc& o) { box.merge(o.box); centroids.merge(o.centroids); }
+    };
+    auto body = [&](const tbb::blocked_range<size_t>& r, Acc b) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
-            merge(b.box, refs[i].box);
-            b.centroids.grow(Vec3{centroid(refs[i], 0), centroid(refs[i], 1), centroid(refs[i], 2)});
+            const Box4 box = Box4::of(refs[i].box);
+            b.box.merge(box);
+            b.centroids.grow(centroid4(box));
         }
         return b;
     };
-    if (refs.size() < kParallelBinRefs) return body(tbb::blocked_range<size_t>(0, refs.size()), Bounds{});
-    // min/max are exact and order-free: the reduction order does not matter.
-    return tbb::parallel_reduce(tbb::blocked_range<size_t>(0, refs.size(), 4096), Bounds{}, body,
-                                [](Bounds a, const Bounds& b) { a.join(b); return a; });
+    // min/max in list order (ties keep the earlier value, also across the
+    // reduction's joins, which keep the ranges' order): any split of the
+    // range gives the same bits.
+    const Acc acc = refs.size() < kParallelBinRefs
+        ? body(tbb::blocked_range<size_t>(0, refs.size()), Acc{})
+        : tbb::parallel_reduce(tbb::blocked_range<size_t>(0, refs.size(), 4096), Acc{}, body,
+                               [](Acc a, const Acc& b) { a.join(b); return a; });
+    return Bounds{acc.box.aabb(), acc.centroids.aabb()};
 }
 
 struct Split {
@@ -219,20 +231,20 @@ Split sweep_sorted(size_t n, At&& at) {
     // Scratch reused across nodes (nothing in here waits on TBB, so no other
     // task can run on this thread while it is in use).
     static thread_local std::vector<double> right_area;
-    static thread_local std::vector<Aabb> right_box;
+    static thread_local std::vector<Box4> right_box;
     right_area.resize(n);
     right_box.resize(n);
     for (int a = 0; a < 3; ++a) {
-        Aabb acc;
+        Box4 acc;
         for (size_t i = n; i-- > 1;) {  // right_box[i] = union of sorted[i..n)
-            merge(acc, at(a, i).box);
+            acc.merge(Box4::of(at(a, i).box));
             right_box[i] = acc;
             right_area[i] = acc.half_area();
         }
-        Aabb left;
+        Box4 left;
         const double half = double(n) / 2.0;
         for (size_t k = 1; k < n; ++k) {  // left = sorted[0..k)
-            merge(left, at(a, k - 1).box);
+            left.merge(Box4::of(at(a, k - 1).box));
             const double cost = left.half_area() * double(k) + right_area[k] * double(n - k);
             const bool better = cost < best.cost ||
                 (cost == best.cost && best.axis == a &&
@@ -242,8 +254,8 @@ Split sweep_sorted(size_t n, At&& at) {
                 best.axis = a;
                 best.kind = Split::kSweep;
                 best.index = k;
-                best.left = left;
-                best.right = right_box[k];
+                best.left = left.aabb();
+                best.right = right_box[k].aabb();
                 best.nl = k;
                 best.nr = n - k;
             }
@@ -272,23 +284,23 @@ Split sweep_object_split(const RefList& refs, RefList& best_sorted) {
 /// union of rbox[b..n) / sum of rcnt[b..n); planes with an empty side are
 /// skipped. Unions are min/max (exact), sums integer: deterministic.
 template <class F>
-void sweep_bins(int n, const Aabb* lbox, const uint32_t* lcnt, const Aabb* rbox, const uint32_t* rcnt, F&& f) {
-    static thread_local std::vector<Aabb> right;  // scratch; f never waits on TBB
+void sweep_bins(int n, const Box4* lbox, const uint32_t* lcnt, const Box4* rbox, const uint32_t* rcnt, F&& f) {
+    static thread_local std::vector<Box4> right;  // scratch; f never waits on TBB
     static thread_local std::vector<uint64_t> nright;
     right.resize(size_t(n));
     nright.resize(size_t(n));
-    Aabb acc;
+    Box4 acc;
     uint64_t cnt = 0;
     for (int b = n - 1; b >= 1; --b) {
-        merge(acc, rbox[b]);
+        acc.merge(rbox[b]);
         cnt += rcnt[b];
         right[size_t(b)] = acc;
         nright[size_t(b)] = cnt;
     }
-    Aabb left;
+    Box4 left;
     uint64_t nl = 0;
     for (int b = 1; b < n; ++b) {
-        merge(left, lbox[b - 1]);
+        left.merge(lbox[b - 1]);
         nl += lcnt[b - 1];
         if (nl == 0 || nright[size_t(b)] == 0) continue;
         f(b, left, nl, right[size_t(b)], nright[size_t(b)]);
@@ -296,10 +308,10 @@ void sweep_bins(int n, const Aabb* lbox, const uint32_t* lcnt, const Aabb* rbox,
 }
 
 struct ObjectBins {
-    Aabb box[kObjectBins];
+    Box4 box[kObjectBins];
     uint32_t count[kObjectBins] = {};
     void join(const ObjectBins& o) {
-        for (int b = 0; b < kObjectBins; ++b) { merge(box[b], o.box[b]); count[b] += o.count[b]; }
+        for (int b = 0; b < kObjectBins; ++b) { box[b].merge(o.box[b]); count[b] += o.count[b]; }
     }
 };
 
@@ -321,7 +333,7 @@ Split binned_object_split(const RefList& refs, const Aabb& cbox) {
         auto body = [&](const tbb::blocked_range<size_t>& r, ObjectBins bins) {
             for (size_t i = r.begin(); i != r.end(); ++i) {
                 const int b = object_bin(centroid(refs[i], a), lo, scale);
-                merge(bins.box[b], refs[i].box);
+                bins.box[b].merge(Box4::of(refs[i].box));
                 ++bins.count[b];
             }
             return bins;
@@ -331,10 +343,11 @@ Split binned_object_split(const RefList& refs, const Aabb& cbox) {
             : tbb::parallel_reduce(tbb::blocked_range<size_t>(0, n, 4096), ObjectBins{}, body,
                                    [](ObjectBins x, const ObjectBins& y) { x.join(y); return x; });
         sweep_bins(kObjectBins, bins.box, bins.count, bins.box, bins.count,
-                   [&](int b, const Aabb& left, uint64_t nl, const Aabb& right, uint64_t nr) {
+                   [&](int b, const Box4& left, uint64_t nl, const Box4& right, uint64_t nr) {
                        const double cost = left.half_area() * double(nl) + right.half_area() * double(nr);
                        if (cost < best.cost) {
-                           best = Split{cost, a, Split::kBinned, size_t(b), left, right, nl, nr, 0.0f, lo, scale};
+                           best = Split{cost,   a,  Split::kBinned, size_t(b), left.aabb(), right.aabb(),
+                                        nl,     nr, 0.0f,           lo,        scale};
                        }
                    });
     }
@@ -349,17 +362,17 @@ Split binned_object_split(const RefList& refs, const Aabb& cbox) {
 /// join order does not matter. reset() reuses the storage (serial passes keep
 /// one per thread: no allocation per node).
 struct SpatialBins {
-    std::vector<Aabb> box;
+    std::vector<Box4> box;
     std::vector<uint32_t> enter, exit;
     explicit SpatialBins(int n = 0) { reset(n); }
     void reset(int n) {
-        box.assign(size_t(n), Aabb{});
+        box.assign(size_t(n), Box4{});
         enter.assign(size_t(n), 0);
         exit.assign(size_t(n), 0);
     }
     void join(const SpatialBins& o) {
         for (size_t b = 0; b < box.size(); ++b) {
-            merge(box[b], o.box[b]);
+            box[b].merge(o.box[b]);
             enter[b] += o.enter[b];
             exit[b] += o.exit[b];
         }
@@ -368,19 +381,19 @@ struct SpatialBins {
 
 /// spatial_lower_bound's bins: boxes by a reference's last and first bin.
 struct LowerBoundBins {
-    std::vector<Aabb> by_last, by_first;
+    std::vector<Box4> by_last, by_first;
     std::vector<uint32_t> enter, exit;
     explicit LowerBoundBins(int n = 0) { reset(n); }
     void reset(int n) {
-        by_last.assign(size_t(n), Aabb{});
-        by_first.assign(size_t(n), Aabb{});
+        by_last.assign(size_t(n), Box4{});
+        by_first.assign(size_t(n), Box4{});
         enter.assign(size_t(n), 0);
         exit.assign(size_t(n), 0);
     }
     void join(const LowerBoundBins& o) {
         for (size_t b = 0; b < by_last.size(); ++b) {
-            merge(by_last[b], o.by_last[b]);
-            merge(by_first[b], o.by_first[b]);
+            by_last[b].merge(o.by_last[b]);
+            by_first[b].merge(o.by_first[b]);
             enter[b] += o.enter[b];
             exit[b] += o.exit[b];
         }
@@ -677,8 +690,9 @@ private:
         const uint32_t index = uint32_t(out.size());
         out.emplace_back();
         const size_t n = s.n;
-        Aabb box;
-        for (size_t i = 0; i < n; ++i) merge(box, s.refs[s.order[0][i]].box);
+        Box4 box4;
+        for (size_t i = 0; i < n; ++i) box4.merge(Box4::of(s.refs[s.order[0][i]].box));
+        const Aabb box = box4.aabb();
         out[index].box = box;
         if (n == 1) {
             out[index].prim = s.refs[s.order[0][0]].tri;
@@ -813,13 +827,14 @@ private:
                 double gate_cost = std::numeric_limits<double>::infinity();
                 // Entering counts on the left, exiting counts on the right of each plane.
                 sweep_bins(nbb, bins.box.data(), bins.enter.data(), bins.box.data(), bins.exit.data(),
-                           [&](int b, const Aabb& left, uint64_t nl, const Aabb& right, uint64_t nr) {
+                           [&](int b, const Box4& left, uint64_t nl, const Box4& right, uint64_t nr) {
                                if (!(planes[b] > planes[0] && planes[b] < planes[nbb])) return;
                                const double cost = left.half_area() * double(nl) + right.half_area() * double(nr);
                                if (!full) {
                                    gate_cost = std::min(gate_cost, cost);
                                } else if (cost < best.cost) {
-                                   best = Split{cost, a, Split::kSpatial, size_t(b), left, right, nl, nr, planes[b]};
+                                   best = Split{cost, a,  Split::kSpatial, size_t(b), left.aabb(), right.aabb(),
+                                                nl,   nr, planes[b]};
                                }
                            });
                 if (!full && !(gate_cost < (1.0 + kSpatialGateSlack) * object_cost)) break;
@@ -846,8 +861,9 @@ private:
                     const int b0 = bin_of_lo(planes, box.lo[a]);
                     const int b1 = std::max(b0, bin_of_hi(planes, box.hi[a]));
                     spans[i] = BinSpan{uint8_t(b0), uint8_t(b1)};
-                    merge(out.by_last[size_t(b1)], box);
-                    merge(out.by_first[size_t(b0)], box);
+                    const Box4 box4 = Box4::of(box);
+                    out.by_last[size_t(b1)].merge(box4);
+                    out.by_first[size_t(b0)].merge(box4);
                     ++out.enter[size_t(b0)];
                     ++out.exit[size_t(b1)];
                 }
@@ -857,7 +873,7 @@ private:
         // left), counts of those whose first bin is < b; mirrored on the right.
         double best = std::numeric_limits<double>::infinity();
         sweep_bins(nb, bins.by_last.data(), bins.enter.data(), bins.by_first.data(), bins.exit.data(),
-                   [&](int, const Aabb& left, uint64_t nl, const Aabb& right, uint64_t nr) {
+                   [&](int, const Box4& left, uint64_t nl, const Box4& right, uint64_t nr) {
                        best = std::min(best, left.half_area() * double(nl) + right.half_area() * double(nr));
                    });
         return best;
@@ -870,7 +886,7 @@ private:
     /// b0, b1: the reference's first and last bin (bin_of_lo, bin_of_hi).
     void bin_reference(const Ref& r, int a, const BinPlanes& planes, int b0, int b1, SpatialBins& bins) const {
         if (b0 == b1) {
-            merge(bins.box[b0], r.box);
+            bins.box[b0].merge(Box4::of(r.box));
             ++bins.enter[b0];
             ++bins.exit[b0];
             return;
@@ -883,12 +899,12 @@ private:
         for (int b = b0; b <= b1; ++b) {
             const Aabb& part = parts[b - b0];
             if (part.empty()) continue;
-            merge(bins.box[b], part);
+            bins.box[b].merge(Box4::of(part));
             if (first < 0) first = b;
             last = b;
         }
         if (first < 0) {  // cannot happen for a consistent reference; keep it whole
-            merge(bins.box[b0], r.box);
+            bins.box[b0].merge(Box4::of(r.box));
             first = last = b0;
         }
         ++bins.enter[first];
