@@ -13,6 +13,10 @@
 
 #include <cstring>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "cwbvh/compiler/model.h"
 
 namespace cwbvh::compiler {
@@ -36,8 +40,14 @@ struct Box4 {
         return r;
     }
     void merge(const Box4& b) {
+#if defined(__SSE2__)
+        // minps(x, y) = x < y ? x : y, maxps(x, y) = x > y ? x : y.
+        lo = F4(_mm_min_ps(__m128(b.lo), __m128(lo)));
+        hi = F4(_mm_max_ps(__m128(b.hi), __m128(hi)));
+#else
         lo = b.lo < lo ? b.lo : lo;
         hi = hi < b.hi ? b.hi : hi;
+#endif
     }
     /// Aabb::grow(point) lane by lane: (lo < p) ? lo : p and (hi > p) ? hi : p
     /// (ties take p, unlike merge()).
@@ -53,11 +63,28 @@ struct Box4 {
         }
         return r;
     }
-    bool empty() const { return !(lo[0] <= hi[0] && lo[1] <= hi[1] && lo[2] <= hi[2]); }
+    bool empty() const {
+#if defined(__SSE2__)
+        return (_mm_movemask_ps(_mm_cmple_ps(__m128(lo), __m128(hi))) & 7) != 7;
+#else
+        return !(lo[0] <= hi[0] && lo[1] <= hi[1] && lo[2] <= hi[2]);
+#endif
+    }
+    /// (dx * dy + dy * dz) + dz * dx with d = double(hi) - double(lo), as
+    /// Aabb::half_area (each step one IEEE double operation, same order).
     double half_area() const {
         if (empty()) return 0.0;
+#if defined(__SSE2__)
+        const __m128d d01 = _mm_sub_pd(_mm_cvtps_pd(__m128(hi)), _mm_cvtps_pd(__m128(lo)));  // dx, dy
+        const __m128 hi23 = _mm_movehl_ps(__m128(hi), __m128(hi)), lo23 = _mm_movehl_ps(__m128(lo), __m128(lo));
+        const __m128d d23 = _mm_sub_pd(_mm_cvtps_pd(hi23), _mm_cvtps_pd(lo23));         // dz, (lane 3)
+        const __m128d p = _mm_mul_pd(d01, _mm_shuffle_pd(d01, d23, 1));                  // dx*dy, dy*dz
+        const double dzdx = _mm_cvtsd_f64(_mm_mul_sd(d23, d01));                         // dz*dx
+        return (_mm_cvtsd_f64(p) + _mm_cvtsd_f64(_mm_unpackhi_pd(p, p))) + dzdx;
+#else
         const double dx = double(hi[0]) - lo[0], dy = double(hi[1]) - lo[1], dz = double(hi[2]) - lo[2];
         return dx * dy + dy * dz + dz * dx;
+#endif
     }
 };
 
