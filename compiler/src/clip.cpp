@@ -163,40 +163,64 @@ void chop_triangle_estimate(const std::array<Vec3, 3>& tri, int axis, const floa
                             const Aabb& ref, Aabb* out) {
     // Plain float arithmetic: the crossing points are off by a few ulps in
     // either direction, which only moves the SAH estimate of a candidate
-    // plane; no box from here is ever stored.
-    float emin[3], emax[3], inv[3];
+    // plane; no box from here is ever stored. A crossing of edge a -> b at
+    // plane c is a + t (b - a) with t = (c - a[axis]) * (1 / (b[axis] - a[axis])),
+    // each step one float operation (the values tests/build/clip_test.cpp
+    // checks against). Its axis coordinate is c itself, so only the other two
+    // coordinates u, v are computed.
+    const int u = axis == 0 ? 1 : 0, v = axis == 2 ? 1 : 2;
+    struct Edge {
+        float emin, emax, a_axis, inv, au, du, av, dv;
+    };
+    Edge edge[3];
     for (int e = 0; e < 3; ++e) {
         const Vec3& a = tri[e];
         const Vec3& b = tri[e == 2 ? 0 : e + 1];
-        emin[e] = std::min(a[axis], b[axis]);
-        emax[e] = std::max(a[axis], b[axis]);
-        inv[e] = emax[e] > emin[e] ? 1.0f / (b[axis] - a[axis]) : 0.0f;
+        Edge& E = edge[e];
+        E.emin = std::min(a[axis], b[axis]);
+        E.emax = std::max(a[axis], b[axis]);
+        E.inv = E.emax > E.emin ? 1.0f / (b[axis] - a[axis]) : 0.0f;
+        E.a_axis = a[axis];
+        E.au = a[u];
+        E.du = b[u] - a[u];
+        E.av = a[v];
+        E.dv = b[v] - a[v];
     }
-    auto cut = [&](float c, Aabb& box) {
-        for (int e = 0; e < 3; ++e) {
-            if (!(emin[e] < c && c < emax[e])) continue;
-            const Vec3& a = tri[e];
-            const Vec3& b = tri[e == 2 ? 0 : e + 1];
-            const float t = (c - a[axis]) * inv[e];
-            for (int j = 0; j < 3; ++j) {
-                const float v = j == axis ? c : a[j] + t * (b[j] - a[j]);
-                box.lo[j] = std::min(box.lo[j], v);
-                box.hi[j] = std::max(box.hi[j], v);
-            }
-        }
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    /// Box of the crossings at one plane: u and v ranges; any = some edge crosses.
+    struct Cut {
+        float lo_u = kInf, hi_u = -kInf, lo_v = kInf, hi_v = -kInf;
+        bool any = false;
     };
-    Aabb lower;
-    cut(planes[0], lower);
+    auto cut = [&](float c) {
+        Cut k;
+        for (const Edge& E : edge) {
+            if (!(E.emin < c && c < E.emax)) continue;  // strictly on both sides
+            const float t = (c - E.a_axis) * E.inv;
+            const float pu = E.au + t * E.du, pv = E.av + t * E.dv;
+            k.lo_u = std::min(k.lo_u, pu);
+            k.hi_u = std::max(k.hi_u, pu);
+            k.lo_v = std::min(k.lo_v, pv);
+            k.hi_v = std::max(k.hi_v, pv);
+            k.any = true;
+        }
+        return k;
+    };
+    Cut lower = cut(planes[0]);
     for (int s = 0; s < slabs; ++s) {
         const float lo = planes[s], hi = planes[s + 1];
-        Aabb upper;
-        cut(hi, upper);
-        Aabb part = lower;
-        for (int j = 0; j < 3; ++j) {
-            part.lo[j] = std::min(part.lo[j], upper.lo[j]);
-            part.hi[j] = std::max(part.hi[j], upper.hi[j]);
+        const Cut upper = cut(hi);
+        Aabb part;
+        part.lo[u] = std::min(lower.lo_u, upper.lo_u);
+        part.hi[u] = std::max(lower.hi_u, upper.hi_u);
+        part.lo[v] = std::min(lower.lo_v, upper.lo_v);
+        part.hi[v] = std::max(lower.hi_v, upper.hi_v);
+        if (lower.any) part.lo[axis] = part.hi[axis] = lo;
+        if (upper.any) {
+            part.lo[axis] = std::min(part.lo[axis], hi);
+            part.hi[axis] = std::max(part.hi[axis], hi);
         }
-        for (int k = 0; k < 3; ++k) {
+        for (int k = 0; k < 3; ++k) {  // vertices inside the slab
             const float c = tri[k][axis];
             if (c >= lo && c <= hi) part.grow(tri[k]);
         }

@@ -236,6 +236,98 @@ TEST(Clip, ChopEqualsClipPerSlab) {
     }
 }
 
+/// chop_triangle_estimate as first written (3-coordinate loops; git 22a1014):
+/// the rewrite must give the same float values (the SBVH's plane costs, and so
+/// its trees, depend on them).
+void chop_estimate_reference(const Tri& tri, int axis, const float* planes, int slabs, const Aabb& ref,
+                             Aabb* out) {
+    float emin[3], emax[3], inv[3];
+    for (int e = 0; e < 3; ++e) {
+        const Vec3& a = tri[e];
+        const Vec3& b = tri[e == 2 ? 0 : e + 1];
+        emin[e] = std::min(a[axis], b[axis]);
+        emax[e] = std::max(a[axis], b[axis]);
+        inv[e] = emax[e] > emin[e] ? 1.0f / (b[axis] - a[axis]) : 0.0f;
+    }
+    auto cut = [&](float c, Aabb& box) {
+        for (int e = 0; e < 3; ++e) {
+            if (!(emin[e] < c && c < emax[e])) continue;
+            const Vec3& a = tri[e];
+            const Vec3& b = tri[e == 2 ? 0 : e + 1];
+            const float t = (c - a[axis]) * inv[e];
+            for (int j = 0; j < 3; ++j) {
+                const float v = j == axis ? c : a[j] + t * (b[j] - a[j]);
+                box.lo[j] = std::min(box.lo[j], v);
+                box.hi[j] = std::max(box.hi[j], v);
+            }
+        }
+    };
+    Aabb lower;
+    cut(planes[0], lower);
+    for (int s = 0; s < slabs; ++s) {
+        const float lo = planes[s], hi = planes[s + 1];
+        Aabb upper;
+        cut(hi, upper);
+        Aabb part = lower;
+        for (int j = 0; j < 3; ++j) {
+            part.lo[j] = std::min(part.lo[j], upper.lo[j]);
+            part.hi[j] = std::max(part.hi[j], upper.hi[j]);
+        }
+        for (int k = 0; k < 3; ++k) {
+            const float c = tri[k][axis];
+            if (c >= lo && c <= hi) part.grow(tri[k]);
+        }
+        for (int j = 0; j < 3; ++j) {
+            part.lo[j] = std::max(part.lo[j], ref.lo[j]);
+            part.hi[j] = std::min(part.hi[j], ref.hi[j]);
+        }
+        part.lo[axis] = std::max(part.lo[axis], lo);
+        part.hi[axis] = std::min(part.hi[axis], hi);
+        out[s] = part.empty() ? Aabb{} : part;
+        lower = upper;
+    }
+}
+
+TEST(Clip, EstimateEqualsTheFirstImplementation) {
+    // Same values (==: the sign of a zero may differ, which no cost sees), on
+    // random, flat, axis-parallel and integer-grid triangles, planes through
+    // vertices, repeated planes, planes beyond the triangle, small ref boxes.
+    std::mt19937_64 rng(31);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f), f(-0.2f, 1.2f);
+    for (int i = 0; i < 20000; ++i) {
+        Tri t;
+        const int kind = i % 4;
+        const float scale = std::ldexp(1.0f, int(rng() % 30) - 15);
+        for (auto& p : t)
+            for (float& c : p) c = kind == 3 ? float(int(rng() % 5) - 2) : u(rng) * scale;
+        if (kind == 1) t[2] = t[0];                                // degenerate: two equal vertices
+        if (kind == 2) t[1][int(rng() % 3)] = t[0][int(rng() % 3)];  // shared coordinates
+        const int axis = int(rng() % 3);
+        const Aabb tb = tri_box(t);
+        const int slabs = 1 + int(rng() % 12);
+        std::vector<float> planes(slabs + 1);
+        for (int s = 0; s <= slabs; ++s) {
+            planes[s] = (rng() % 4 == 0) ? t[rng() % 3][axis] : tb.lo[axis] + (tb.hi[axis] - tb.lo[axis]) * f(rng);
+        }
+        std::sort(planes.begin(), planes.end());
+        Aabb ref = tb;
+        if (i % 5 == 0) {
+            for (int j = 0; j < 3; ++j) ref.hi[j] = ref.lo[j] + (ref.hi[j] - ref.lo[j]) * 0.7f;
+        }
+        std::vector<Aabb> want(slabs), got(slabs);
+        chop_estimate_reference(t, axis, planes.data(), slabs, ref, want.data());
+        chop_triangle_estimate(t, axis, planes.data(), slabs, ref, got.data());
+        for (int s = 0; s < slabs; ++s) {
+            ASSERT_EQ(got[s].empty(), want[s].empty()) << i << " " << s;
+            if (want[s].empty()) continue;
+            for (int j = 0; j < 3; ++j) {
+                ASSERT_EQ(got[s].lo[j], want[s].lo[j]) << i << " " << s << " " << j;
+                ASSERT_EQ(got[s].hi[j], want[s].hi[j]) << i << " " << s << " " << j;
+            }
+        }
+    }
+}
+
 TEST(Clip, EstimateIsCloseToConservativeChop) {
     // chop_triangle_estimate (plain float, used only for the SBVH's plane
     // costs) may differ from the conservative chop by rounding, nothing more:
