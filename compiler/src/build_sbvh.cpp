@@ -322,32 +322,64 @@ inline int object_bin(float c, float lo, float scale) {
     return std::clamp(b, 0, kObjectBins - 1);
 }
 
+/// The three axes' centroid bins, filled in one pass over the references.
+struct ObjectBins3 {
+    ObjectBins axis[3];
+    void join(const ObjectBins3& o) {
+        for (int a = 0; a < 3; ++a) axis[a].join(o.axis[a]);
+    }
+};
+
 Split binned_object_split(const RefList& refs, const Aabb& cbox) {
     Split best;
     const size_t n = refs.size();
+    bool use[3];
+    float lo[3], scale[3];
     for (int a = 0; a < 3; ++a) {
         const float ext = cbox.hi[a] - cbox.lo[a];
-        if (!(ext > 0.0f) || !std::isfinite(ext)) continue;
-        const float scale = float(kObjectBins) * 0.99999f / ext;
-        const float lo = cbox.lo[a];
-        auto body = [&](const tbb::blocked_range<size_t>& r, ObjectBins bins) {
-            for (size_t i = r.begin(); i != r.end(); ++i) {
-                const int b = object_bin(centroid(refs[i], a), lo, scale);
-                bins.box[b].merge(Box4::of(refs[i].box));
-                ++bins.count[b];
+        use[a] = ext > 0.0f && std::isfinite(ext);
+        scale[a] = use[a] ? float(kObjectBins) * 0.99999f / ext : 0.0f;
+        lo[a] = cbox.lo[a];
+    }
+    // object_bin() for the three axes at once: the same float operations per
+    // lane (truncation of out-of-range values gives INT_MIN either way, then
+    // the clamp). Unused axes are binned too and ignored.
+    const F4 lo4 = {lo[0], lo[1], lo[2], lo[2]}, scale4 = {scale[0], scale[1], scale[2], scale[2]};
+    auto body = [&](const tbb::blocked_range<size_t>& r, ObjectBins3 bins) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            const Box4 box = Box4::of(refs[i].box);
+            const F4 f = (centroid4(box) - lo4) * scale4;
+            int b[4];
+#if defined(__SSE2__)
+            const __m128i top = _mm_set1_epi32(kObjectBins - 1);
+            __m128i bi = _mm_cvttps_epi32(__m128(f));
+            bi = _mm_andnot_si128(_mm_cmplt_epi32(bi, _mm_setzero_si128()), bi);       // < 0 -> 0
+            const __m128i over = _mm_cmpgt_epi32(bi, top);
+            bi = _mm_or_si128(_mm_and_si128(over, top), _mm_andnot_si128(over, bi));  // > 63 -> 63
+            _mm_storeu_si128(reinterpret_cast<__m128i*>(b), bi);
+#else
+            for (int a = 0; a < 3; ++a) b[a] = std::clamp(int(f[a]), 0, kObjectBins - 1);
+#endif
+            for (int a = 0; a < 3; ++a) {
+                bins.axis[a].box[b[a]].merge(box);
+                ++bins.axis[a].count[b[a]];
             }
-            return bins;
-        };
-        const ObjectBins bins = n < kParallelBinRefs
-            ? body(tbb::blocked_range<size_t>(0, n), ObjectBins{})
-            : tbb::parallel_reduce(tbb::blocked_range<size_t>(0, n, 4096), ObjectBins{}, body,
-                                   [](ObjectBins x, const ObjectBins& y) { x.join(y); return x; });
-        sweep_bins(kObjectBins, bins.box, bins.count, bins.box, bins.count,
+        }
+        return bins;
+    };
+    const ObjectBins3 bins = n < kParallelBinRefs
+        ? body(tbb::blocked_range<size_t>(0, n), ObjectBins3{})
+        : tbb::parallel_reduce(tbb::blocked_range<size_t>(0, n, 4096), ObjectBins3{}, body,
+                               [](ObjectBins3 x, const ObjectBins3& y) { x.join(y); return x; });
+    for (int a = 0; a < 3; ++a) {
+        if (!use[a]) continue;
+        const ObjectBins& ab = bins.axis[a];
+        sweep_bins(kObjectBins, ab.box, ab.count, ab.box, ab.count,
                    [&](int b, const Box4& left, uint64_t nl, const Box4& right, uint64_t nr) {
                        const double cost = left.half_area() * double(nl) + right.half_area() * double(nr);
                        if (cost < best.cost) {
                            best = Split{cost,   a,  Split::kBinned, size_t(b), left.aabb(), right.aabb(),
-                                        nl,     nr, 0.0f,           lo,        scale};
+                                        nl,     nr, 0.0f,           lo[a],     scale[a]};
                        }
                    });
     }
@@ -597,8 +629,8 @@ private:
     /// share_budget with the children's lists as made (sums in list order).
     static void share_budget_of_lists(uint64_t n, uint64_t budget, int chops, Children& kids) {
         double wl = 0.0, wr = 0.0;
-        for (const Ref& r : kids.left) wl += r.box.half_area();
-        for (const Ref& r : kids.right) wr += r.box.half_area();
+        for (const Ref& r : kids.left) wl += Box4::of(r.box).half_area();  // = Aabb::half_area, faster
+        for (const Ref& r : kids.right) wr += Box4::of(r.box).half_area();
         share_budget(n, kids.left.size(), kids.right.size(), budget, chops, wl, wr, kids);
     }
 
@@ -724,8 +756,8 @@ private:
         double wl = 0.0, wr = 0.0;
         bool goes_left[kSweepMaxRefs];
         for (size_t i = 0; i < n; ++i) goes_left[s.order[best][i]] = i < k;
-        for (size_t i = 0; i < k; ++i) wl += s.refs[s.order[best][i]].box.half_area();
-        for (size_t i = k; i < n; ++i) wr += s.refs[s.order[best][i]].box.half_area();
+        for (size_t i = 0; i < k; ++i) wl += Box4::of(s.refs[s.order[best][i]].box).half_area();
+        for (size_t i = k; i < n; ++i) wr += Box4::of(s.refs[s.order[best][i]].box).half_area();
         for (int a = 0; a < 3; ++a) {
             if (a == best) continue;
             uint8_t right[kSweepMaxRefs];
