@@ -60,6 +60,21 @@ Result import_one(const std::string& path, const ImportOptions& options, RawInpu
 
 }  // namespace
 
+Result read_file_bytes(const std::string& path, std::vector<uint8_t>& bytes) {
+    bytes.clear();
+    std::ifstream f(path, std::ios::binary | std::ios::ate);
+    if (!f) return Result::fail(Status::kIoError, 0, "cannot open file");
+    const std::streamoff size = f.tellg();
+    if (size < 0) return Result::fail(Status::kIoError, 0, "cannot read file");
+    bytes.resize(size_t(size));
+    f.seekg(0);
+    if (size > 0 && !f.read(reinterpret_cast<char*>(bytes.data()), size)) {
+        bytes.clear();
+        return Result::fail(Status::kIoError, 0, "cannot read file");
+    }
+    return Result::success();
+}
+
 Result import_scene(const std::vector<std::string>& paths, const ImportOptions& options, Scene& out,
                     std::vector<std::string>& warnings) {
     out = Scene{};

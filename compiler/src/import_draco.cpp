@@ -1,7 +1,5 @@
 // Draco adapter (the only file that includes Draco): .drc files and the
 // compressed buffer views of glTF KHR_draco_mesh_compression primitives.
-#include <fstream>
-#include <iterator>
 
 #include <draco/compression/decode.h>
 #include <draco/core/decoder_buffer.h>
@@ -79,10 +77,8 @@ Result decode_draco_mesh(const uint8_t* data, size_t size, int position_id,
 
 Result import_draco_file(const std::string& path, RawInput& out) {
     out = RawInput{};
-    std::ifstream f(path, std::ios::binary);
-    if (!f) return Result::fail(Status::kIoError, 0, "cannot open file");
-    const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)),
-                                     std::istreambuf_iterator<char>());
+    std::vector<uint8_t> bytes;
+    if (Result r = read_file_bytes(path, bytes); !r.ok()) return r;
     RawPrimitive prim;
     if (Result r = decode_draco_mesh(bytes.data(), bytes.size(), -1, prim.vertices, prim.triangles); !r.ok())
         return r;

@@ -15,8 +15,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <fstream>
-#include <iterator>
 #include <limits>
 #include <map>
 #include <string_view>
@@ -131,26 +129,25 @@ using DracoIndices = std::map<std::pair<size_t, size_t>, int>;
 /// which is exactly what KHR_draco_mesh_compression primitives have. So,
 /// before tinygltf sees the JSON, remove "indices" from every Draco
 /// primitive and remember it in `table`; the reader checks it against the
-/// decoded data. Returns the (possibly rebuilt) file bytes; on any parse
-/// problem returns the input unchanged and lets tinygltf report the error.
-std::vector<uint8_t> strip_draco_indices(const std::vector<uint8_t>& bytes, bool binary,
-                                         DracoIndices& table) {
+/// decoded data. Rebuilds `bytes` when something was removed; on any parse
+/// problem leaves them unchanged and lets tinygltf report the error.
+void strip_draco_indices(std::vector<uint8_t>& bytes, bool binary, DracoIndices& table) {
     static const std::string kExt = "KHR_draco_mesh_compression";
     size_t json_begin = 0, json_size = bytes.size();
     if (binary) {
-        if (bytes.size() < 20) return bytes;
+        if (bytes.size() < 20) return;
         uint32_t chunk0 = 0;
         std::memcpy(&chunk0, bytes.data() + 12, 4);
-        if (chunk0 > bytes.size() - 20) return bytes;
+        if (chunk0 > bytes.size() - 20) return;
         json_begin = 20;
         json_size = chunk0;
     }
     const char* text = reinterpret_cast<const char*>(bytes.data()) + json_begin;
-    if (std::string_view(text, json_size).find(kExt) == std::string_view::npos) return bytes;
+    if (std::string_view(text, json_size).find(kExt) == std::string_view::npos) return;
     nlohmann::json doc = nlohmann::json::parse(text, text + json_size, nullptr, false);
-    if (doc.is_discarded() || !doc.is_object()) return bytes;
+    if (doc.is_discarded() || !doc.is_object()) return;
     auto meshes = doc.find("meshes");
-    if (meshes == doc.end() || !meshes->is_array()) return bytes;
+    if (meshes == doc.end() || !meshes->is_array()) return;
     bool changed = false;
     for (size_t m = 0; m < meshes->size(); ++m) {
         nlohmann::json& mesh = (*meshes)[m];
@@ -169,9 +166,12 @@ std::vector<uint8_t> strip_draco_indices(const std::vector<uint8_t>& bytes, bool
             changed = true;
         }
     }
-    if (!changed) return bytes;
+    if (!changed) return;
     std::string json = doc.dump();
-    if (!binary) return std::vector<uint8_t>(json.begin(), json.end());
+    if (!binary) {
+        bytes.assign(json.begin(), json.end());
+        return;
+    }
     while (json.size() % 4 != 0) json.push_back(' ');  // GLB chunks are 4-aligned
     const size_t rest_begin = json_begin + json_size;
     std::vector<uint8_t> out(bytes.begin(), bytes.begin() + 12);
@@ -184,7 +184,7 @@ std::vector<uint8_t> strip_draco_indices(const std::vector<uint8_t>& bytes, bool
     out.insert(out.end(), bytes.begin() + std::ptrdiff_t(rest_begin), bytes.end());
     const uint32_t total = uint32_t(out.size());
     std::memcpy(out.data() + 8, &total, 4);
-    return out;
+    bytes = std::move(out);
 }
 
 /// Local (untransformed) geometry of one primitive, decoded once and shared
@@ -713,13 +713,11 @@ Result import_gltf(const std::string& path, const ImportOptions& options, RawInp
     auto bad = [](std::string what) { return Result::fail(Status::kBadInput, 0, std::move(what)); };
     out = RawInput{};
     try {
-        std::ifstream f(path, std::ios::binary);
-        if (!f) return Result::fail(Status::kIoError, 0, "cannot open file");
-        std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)),
-                                   std::istreambuf_iterator<char>());
+        std::vector<uint8_t> bytes;
+        if (Result r = read_file_bytes(path, bytes); !r.ok()) return r;
         const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
         DracoIndices draco_indices;
-        bytes = strip_draco_indices(bytes, binary, draco_indices);
+        strip_draco_indices(bytes, binary, draco_indices);
         if (bytes.size() >= std::numeric_limits<unsigned int>::max())
             return bad("file of 4 GiB or more (tinygltf limit)");
         const size_t slash = path.find_last_of('/');

@@ -69,6 +69,11 @@ Result import_openmesh(const std::string& path, const ImportOptions& options,
                                    std::vector<std::string>& warnings);
 Result import_draco_file(const std::string& path, RawInput& out);
 
+/// The whole file in one read (the readers' input; the importers used a
+/// byte-by-byte stream iterator, 26 ms of the dragon's 0.1 s import).
+/// kIoError "cannot open file" / "cannot read file".
+Result read_file_bytes(const std::string& path, std::vector<uint8_t>& bytes);
+
 /// Decodes a Draco mesh (KHR_draco_mesh_compression or a .drc file) into
 /// positions and triangles. `position_id`: the Draco attribute unique id of
 /// the positions, or -1 for "the POSITION attribute". Positions come back as
