@@ -134,7 +134,7 @@ void flatten(const ENode* root, const Aabb& root_box, BinaryBvh& out) {
         BinaryNode bn;
         bn.box = it.box;
         if (it.node->leaf) {
-            bn.prim = static_cast<const ELeaf*>(it.node)->prim;
+            bn.set_prim(static_cast<const ELeaf*>(it.node)->prim);
             out.nodes.push_back(bn);
             continue;
         }
@@ -249,7 +249,7 @@ Result build_embree(const Scene& scene, const SbvhConfig& config, BinaryBvh& out
             for (const uint32_t c : n.child) { parent[c] = i; depth[c] = depth[i] + 1; }
             continue;
         }
-        uint32_t& prev = last_leaf[n.prim];
+        uint32_t& prev = last_leaf[n.prim()];
         if (prev != kInvalidIndex) {
             uint32_t x = prev, y = i;
             while (x != y) {

@@ -676,7 +676,7 @@ private:
         const bool internal = split_node(refs, budget, depth, chops, box, kids);
         out[index].box = box;  // (out may have moved: index, not reference)
         if (!internal) {
-            out[index].prim = prim;
+            out[index].set_prim(prim);
             return index;
         }
         const uint32_t l = build_block(out, kids.left, kids.budget_left, depth + 1, kids.chops);
@@ -727,7 +727,7 @@ private:
         const Aabb box = box4.aabb();
         out[index].box = box;
         if (n == 1) {
-            out[index].prim = s.refs[s.order[0][0]].tri;
+            out[index].set_prim(s.refs[s.order[0][0]].tri);
             return index;
         }
         if (depth == 0) root_area_ = box.half_area();

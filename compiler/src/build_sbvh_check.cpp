@@ -61,15 +61,12 @@ Result validate_binary_bvh(const Scene& scene, const BinaryBvh& bvh, int samples
         const BinaryNode& n = nodes[i];
         if (n.box.empty()) return Result::fail(Status::kInternal, 0, "node " + std::to_string(i) + " has an empty box");
         if (n.is_leaf()) {
-            if (n.child[0] != kInvalidIndex || n.child[1] != kInvalidIndex) {
-                return Result::fail(Status::kInternal, 0, "leaf " + std::to_string(i) + " has children");
-            }
-            if (n.prim >= tris) {
+            if (n.prim() >= tris) {
                 return Result::fail(Status::kInternal, 0,
                                     "leaf " + std::to_string(i) + " has triangle id out of range");
             }
             Aabb tb;
-            for (const Vec3& v : scene.triangle(n.prim)) tb.grow(v);
+            for (const Vec3& v : scene.triangle(n.prim())) tb.grow(v);
             Aabb meet;
             for (int j = 0; j < 3; ++j) {
                 meet.lo[j] = std::max(tb.lo[j], n.box.lo[j]);
@@ -78,9 +75,9 @@ Result validate_binary_bvh(const Scene& scene, const BinaryBvh& bvh, int samples
             if (meet.empty()) {
                 return Result::fail(Status::kInternal, 0,
                                     "leaf " + std::to_string(i) + " box " + box_str(n.box) + " misses triangle " +
-                                        std::to_string(n.prim) + " box " + box_str(tb));
+                                        std::to_string(n.prim()) + " box " + box_str(tb));
             }
-            leaves_of[n.prim].push_back(i);
+            leaves_of[n.prim()].push_back(i);
             ++leaves;
             continue;
         }

@@ -24,9 +24,9 @@ Result check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count) {
             }
         }
         if (node.is_leaf()) {
-            if (node.child[0] != kInvalidIndex || node.child[1] != kInvalidIndex) {
+            if (node.prim() == kInvalidIndex) {
                 return Result::fail(Status::kInvalidArgument, 0,
-                                    "binary BVH leaf " + std::to_string(i) + " has children");
+                                    "binary BVH leaf " + std::to_string(i) + " has no triangle");
             }
             continue;
         }
@@ -103,7 +103,7 @@ uint32_t distinct_leaf_triangles(const BinaryBvh& binary, uint32_t node) {
     uint32_t prims[kMaxNodeTriangles];
     uint32_t count = 0, total = 0;
     for_each_leaf(binary, node, [&](uint32_t leaf) {
-        const uint32_t p = binary.nodes[leaf].prim;
+        const uint32_t p = binary.nodes[leaf].prim();
         ++total;
         if (std::find(prims, prims + count, p) == prims + count && count < kMaxNodeTriangles) prims[count++] = p;
     });
@@ -116,7 +116,7 @@ WideChild make_wide_leaf(const BinaryBvh& binary, uint32_t node, WideBvh& wide) 
     child.box = binary.nodes[node].box;
     child.first_ref = uint32_t(wide.leaf_refs.size());
     for_each_leaf(binary, node, [&](uint32_t leaf) {
-        const uint32_t p = binary.nodes[leaf].prim;
+        const uint32_t p = binary.nodes[leaf].prim();
         // Spatial splits can put two references of one triangle in the same
         // leaf: store it once (the DP's leaf cost counts distinct triangles).
         uint32_t k = child.first_ref;

@@ -41,7 +41,7 @@ Result compile_binary(const Scene& scene, BinaryBvh& binary, const CoreOptions& 
         return r;
 
     // The binary tree is only needed again for the optional BVH2/BV2L section;
-    // without it, it is the largest structure alive (36 bytes per node).
+    // without it, it is the largest structure alive (32 bytes per node).
     const bool keep_binary = options.emit.bvh2 != Bvh2Section::kNone;
     if (!keep_binary) BinaryBvh{}.nodes.swap(binary.nodes);
     emit.binary = keep_binary ? &binary : nullptr;

@@ -30,7 +30,7 @@ bool identical(const BinaryBvh& a, const BinaryBvh& b) {
     if (a.nodes.size() != b.nodes.size() || a.references != b.references ||
         a.spatial_splits != b.spatial_splits || a.object_splits != b.object_splits)
         return false;
-    static_assert(sizeof(BinaryNode) == 36);  // no padding: bitwise compare is meaningful
+    static_assert(sizeof(BinaryNode) == 32);  // no padding: bitwise compare is meaningful
     return std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(BinaryNode)) == 0;
 }
 

@@ -51,7 +51,7 @@ void check_structure(const BinaryBvh& binary, const WideBvh& wide, size_t triang
     for (size_t i = 0; i < binary.nodes.size(); ++i) {
         if (!binary.nodes[i].is_leaf()) continue;
         ASSERT_LT(wide.binary_leaf_ref[i], wide.leaf_refs.size());
-        EXPECT_EQ(wide.leaf_refs[wide.binary_leaf_ref[i]], binary.nodes[i].prim);
+        EXPECT_EQ(wide.leaf_refs[wide.binary_leaf_ref[i]], binary.nodes[i].prim());
     }
 }
 

@@ -63,7 +63,7 @@ BinaryBvh build_binary(const Scene& scene, std::vector<uint32_t> refs, SplitMode
         bvh.nodes.emplace_back();
         if (r.parent != kInvalidIndex) bvh.nodes[r.parent].child[r.side] = index;
         if (r.end - r.begin == 1) {
-            bvh.nodes[index].prim = refs[r.begin];
+            bvh.nodes[index].set_prim(refs[r.begin]);
             continue;
         }
         size_t mid;
@@ -91,7 +91,7 @@ BinaryBvh build_binary(const Scene& scene, std::vector<uint32_t> refs, SplitMode
     for (size_t i = bvh.nodes.size(); i-- > 0;) {
         compiler::BinaryNode& n = bvh.nodes[i];
         if (n.is_leaf()) {
-            n.box = tri_box(scene, n.prim);
+            n.box = tri_box(scene, n.prim());
         } else {
             n.box = bvh.nodes[n.child[0]].box;
             n.box.grow(bvh.nodes[n.child[1]].box);
@@ -128,7 +128,7 @@ struct Brute {
     void leaves(uint32_t n, std::vector<uint32_t>& prims) const {
         const auto& b = bvh.nodes[n];
         if (b.is_leaf()) {
-            prims.push_back(b.prim);
+            prims.push_back(b.prim());
             return;
         }
         leaves(b.child[0], prims);

@@ -41,7 +41,7 @@ double wide_avg_children(const WideBvh& wide);
 
 namespace detail {
 /// Checks the BinaryBvh invariants the collapse relies on (node 0 root, leaf
-/// <=> prim valid, children with larger indices, every non-root node has
+/// with a valid prim, children with larger indices, every non-root node has
 /// exactly one parent, finite non-empty boxes) and counts the leaf references
 /// under every node (saturating at UINT32_MAX).
 Result check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count);

@@ -63,12 +63,21 @@ struct Scene {
 /// Binary BVH with exactly one triangle reference per leaf. Node 0 is the
 /// root. Nodes are in depth-first order (left subtree first) so that the
 /// layout is canonical whatever the thread count.
+/// 32 bytes: a leaf keeps its stored triangle id in child[0] and marks
+/// child[1] invalid (an internal node has two valid children).
 struct BinaryNode {
     Aabb box;                  ///< conservative bounds of the subtree (clipped for split references)
-    uint32_t child[2] = {kInvalidIndex, kInvalidIndex};  ///< internal: children; leaf: both invalid
-    uint32_t prim = kInvalidIndex;  ///< leaf: stored triangle id; internal: kInvalidIndex
-    bool is_leaf() const { return prim != kInvalidIndex; }
+    uint32_t child[2] = {kInvalidIndex, kInvalidIndex};  ///< internal: children; leaf: {prim, kInvalidIndex}
+    bool is_leaf() const { return child[1] == kInvalidIndex; }
+    /// Leaf: the stored triangle id (kInvalidIndex for a node never made a leaf or internal).
+    uint32_t prim() const { return child[0]; }
+    /// Makes this node a leaf holding stored triangle `p`.
+    void set_prim(uint32_t p) {
+        child[0] = p;
+        child[1] = kInvalidIndex;
+    }
 };
+static_assert(sizeof(BinaryNode) == 32, "BinaryNode: 32 bytes");
 
 struct BinaryBvh {
     std::vector<BinaryNode> nodes;
