@@ -4,13 +4,21 @@
 
 #include <algorithm>
 #include <cmath>
+#include <atomic>
 #include <limits>
 #include <utility>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 namespace cwbvh::compiler {
 namespace detail {
 
-Result check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count) {
+namespace {
+
+/// The serial structure check (the first failing node in index order
+/// reports); the parallel check below runs it again only to name a failure.
+Result check_structure_serial(const BinaryBvh& binary) {
     const size_t n = binary.nodes.size();
     if (n == 0) return Result::fail(Status::kInvalidArgument, 0, "binary BVH has no nodes");
     if (n >= size_t(kInvalidIndex)) return Result::fail(Status::kInvalidArgument, 0, "binary BVH has too many nodes");
@@ -49,9 +57,12 @@ Result check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count) {
                                 "binary BVH node " + std::to_string(i) + " is unreachable from the root");
         }
     }
-    // Children have larger indices: a reverse sweep is a post-order.
-    ref_count.assign(n, 0);
-    for (size_t i = n; i-- > 0;) {
+    return Result::success();
+}
+
+/// Reference counts by a reverse sweep (children have larger indices: a post-order).
+void count_refs_serial(const BinaryBvh& binary, size_t begin, size_t end, std::vector<uint32_t>& ref_count) {
+    for (size_t i = end; i-- > begin;) {
         const BinaryNode& node = binary.nodes[i];
         if (node.is_leaf()) {
             ref_count[i] = 1;
@@ -60,6 +71,111 @@ Result check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count) {
             ref_count[i] = uint32_t(std::min<uint64_t>(sum, std::numeric_limits<uint32_t>::max()));
         }
     }
+}
+
+constexpr size_t kCheckGrain = 1 << 14;
+
+}  // namespace
+
+bool preorder_cut(const BinaryBvh& binary, size_t max_nodes, std::vector<uint32_t>& top,
+                  std::vector<NodeRange>& tasks) {
+    top.clear();
+    tasks.clear();
+    std::vector<NodeRange> pending{{0, uint32_t(binary.nodes.size())}};
+    while (!pending.empty()) {
+        const NodeRange r = pending.back();
+        pending.pop_back();
+        const BinaryNode& b = binary.nodes[r.begin];
+        if (b.is_leaf() || r.end - r.begin <= max_nodes) {
+            tasks.push_back(r);
+            continue;
+        }
+        const uint32_t c0 = b.child[0], c1 = b.child[1];
+        if (c0 != r.begin + 1 || !(c1 > c0 && c1 < r.end)) return false;  // not preorder
+        top.push_back(r.begin);
+        pending.push_back({c1, r.end});
+        pending.push_back({c0, c1});
+    }
+    return true;
+}
+
+Result check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count) {
+    const size_t n = binary.nodes.size();
+    if (n == 0) return Result::fail(Status::kInvalidArgument, 0, "binary BVH has no nodes");
+    if (n >= size_t(kInvalidIndex)) return Result::fail(Status::kInvalidArgument, 0, "binary BVH has too many nodes");
+    // In parallel: every node's own checks, and its children's parent marks
+    // (bit 0: a parent, bit 1: a second one). Any failure: the serial check
+    // names the same first failure as before.
+    std::vector<uint8_t> parents(n, 0);
+    std::atomic<bool> bad{false};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kCheckGrain), [&](const tbb::blocked_range<size_t>& r) {
+        bool local_bad = false;
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            const BinaryNode& node = binary.nodes[i];
+            for (int a = 0; a < 3; ++a) {
+                local_bad |= !std::isfinite(node.box.lo[a]) || !std::isfinite(node.box.hi[a]) ||
+                             node.box.lo[a] > node.box.hi[a];
+            }
+            if (node.is_leaf()) {
+                local_bad |= node.prim() == kInvalidIndex;
+                continue;
+            }
+            for (int c = 0; c < 2; ++c) {
+                const uint32_t ch = node.child[c];
+                if (ch == kInvalidIndex || ch <= i || ch >= n) {
+                    local_bad = true;
+                    continue;
+                }
+                std::atomic_ref<uint8_t> mark(parents[ch]);
+                if (mark.fetch_or(1, std::memory_order_relaxed) & 1) mark.fetch_or(2, std::memory_order_relaxed);
+            }
+        }
+        if (local_bad) bad.store(true, std::memory_order_relaxed);
+    });
+    if (!bad.load()) {
+        tbb::parallel_for(tbb::blocked_range<size_t>(1, n, kCheckGrain), [&](const tbb::blocked_range<size_t>& r) {
+            for (size_t i = r.begin(); i != r.end(); ++i) {
+                if (parents[i] != 1) {
+                    bad.store(true, std::memory_order_relaxed);
+                    return;
+                }
+            }
+        });
+    }
+    std::vector<uint8_t>().swap(parents);
+    if (bad.load()) {
+        Result r = check_structure_serial(binary);
+        if (r.ok()) r = Result::fail(Status::kInternal, 0, "binary BVH check: parallel and serial checks disagree");
+        return r;
+    }
+    ref_count.assign(n, 0);
+    // A valid tree: every node has one parent with a smaller index. Preorder
+    // subtrees (what both builders write) are counted in parallel, each by a
+    // reverse sweep of its index range; any other order by one serial sweep.
+    std::vector<uint32_t> top;
+    std::vector<NodeRange> tasks;
+    if (!preorder_cut(binary, size_t(1) << 16, top, tasks)) {
+        count_refs_serial(binary, 0, n, ref_count);
+        return Result::success();
+    }
+    std::atomic<bool> escaped{false};
+    tbb::parallel_for(size_t(0), tasks.size(), [&](size_t t) {
+        const NodeRange r = tasks[t];
+        // Children outside the task's range: not a preorder subtree.
+        for (size_t i = r.begin; i < r.end; ++i) {
+            const BinaryNode& node = binary.nodes[i];
+            if (!node.is_leaf() && (node.child[0] >= r.end || node.child[1] >= r.end)) {
+                escaped.store(true, std::memory_order_relaxed);
+                return;
+            }
+        }
+        count_refs_serial(binary, r.begin, r.end, ref_count);
+    });
+    if (escaped.load()) {
+        count_refs_serial(binary, 0, n, ref_count);
+        return Result::success();
+    }
+    for (size_t k = top.size(); k-- > 0;) count_refs_serial(binary, top[k], top[k] + 1, ref_count);
     return Result::success();
 }
 
@@ -125,6 +241,24 @@ WideChild make_wide_leaf(const BinaryBvh& binary, uint32_t node, WideBvh& wide) 
         if (!wide.binary_leaf_ref.empty()) wide.binary_leaf_ref[leaf] = k;
     });
     child.ref_count = uint8_t(wide.leaf_refs.size() - child.first_ref);  // <= max_leaf <= 3
+    return child;
+}
+
+WideChild make_wide_leaf_at(const BinaryBvh& binary, uint32_t node, WideBvh& wide, uint32_t& cursor) {
+    WideChild child;
+    child.kind = WideChild::kLeaf;
+    child.box = binary.nodes[node].box;
+    child.first_ref = cursor;
+    for_each_leaf(binary, node, [&](uint32_t leaf) {
+        const uint32_t p = binary.nodes[leaf].prim();
+        // Spatial splits can put two references of one triangle in the same
+        // leaf: store it once (the DP's leaf cost counts distinct triangles).
+        uint32_t k = child.first_ref;
+        while (k < cursor && wide.leaf_refs[k] != p) ++k;
+        if (k == cursor) wide.leaf_refs[cursor++] = p;
+        if (!wide.binary_leaf_ref.empty()) wide.binary_leaf_ref[leaf] = k;
+    });
+    child.ref_count = uint8_t(cursor - child.first_ref);  // <= max_leaf <= 3
     return child;
 }
 

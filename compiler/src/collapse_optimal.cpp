@@ -196,6 +196,10 @@ bool run_dp(const BinaryBvh& binary, const CollapseConfig& config, const std::ve
 /// Subtrees of at most this many nodes are swept by one task each.
 constexpr size_t kTaskNodes = 1 << 16;
 
+/// The backtracking walks the top wide levels until this many independent
+/// wide subtrees are found (or the tree ends), then builds them in parallel.
+constexpr size_t kFrontierItems = 512;
+
 /// The DP of a tree in depth-first preorder (what both builders write), in
 /// parallel: a node's subtree is the index range [node, end) (the root's end
 /// is the node count; the left child's range ends where the right child
@@ -205,26 +209,9 @@ constexpr size_t kTaskNodes = 1 << 16;
 /// the tree is not in preorder: the caller falls back to one CostArray sweep.
 bool run_dp_parallel(const BinaryBvh& binary, const CollapseConfig& config, const std::vector<uint32_t>& ref_count,
                      std::vector<Decision>& dec, Progress* progress) {
-    struct Range {
-        uint32_t begin, end;
-    };
     std::vector<uint32_t> top;    // nodes above the tasks, in preorder
-    std::vector<Range> tasks;
-    std::vector<Range> pending{{0, uint32_t(binary.nodes.size())}};
-    while (!pending.empty()) {
-        const Range r = pending.back();
-        pending.pop_back();
-        const BinaryNode& b = binary.nodes[r.begin];
-        if (b.is_leaf() || r.end - r.begin <= kTaskNodes) {
-            tasks.push_back(r);
-            continue;
-        }
-        const uint32_t c0 = b.child[0], c1 = b.child[1];
-        if (c0 != r.begin + 1 || !(c1 > c0 && c1 < r.end)) return false;  // not preorder
-        top.push_back(r.begin);
-        pending.push_back({c1, r.end});
-        pending.push_back({c0, c1});
-    }
+    std::vector<NodeRange> tasks;
+    if (!preorder_cut(binary, kTaskNodes, top, tasks)) return false;
     std::vector<Costs> roots(tasks.size());
     std::atomic<bool> ok{true};
     tbb::parallel_for(size_t(0), tasks.size(), [&](size_t t) {
@@ -278,37 +265,16 @@ Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config, s
         CostArray array(binary.nodes.size());
         run_dp(binary, config, ref_count, 0, binary.nodes.size(), array, dp, progress);
     }
-    const uint32_t references = ref_count[0];
     std::vector<uint32_t>().swap(ref_count);  // not needed below: free it before the wide nodes exist
 
     // Backtracking: create wide nodes top-down. Each wide node gets the roots
-    // of its binary node's two child forests. A first pass only counts the
-    // wide nodes so that the node array is allocated once (WideNode is 312
-    // bytes; growing by doubling had old and new arrays alive together).
-    size_t wide_nodes = 1;
-    if (!binary.nodes[0].is_leaf()) {
-        std::vector<uint32_t> pending{0};
-        uint32_t roots[kWidth];
-        while (!pending.empty()) {
-            const uint32_t m = pending.back();
-            pending.pop_back();
-            const int count = wide_roots(binary, dp, m, roots);
-            for (int c = 0; c < count; ++c) {
-                if (!dp[roots[c]].as_leaf()) {
-                    ++wide_nodes;
-                    pending.push_back(roots[c]);
-                }
-            }
-        }
-    }
-    out.nodes.reserve(wide_nodes);
-    out.leaf_refs.reserve(references);  // <= one entry per binary leaf
-
-    struct Work {
-        uint32_t binary;
-        uint32_t wide;
-    };
-    std::vector<Work> work;
+    // of its binary node's two child forests. The top levels are walked
+    // breadth first until there are enough independent wide subtrees (the
+    // frontier); each frontier subtree is counted (wide nodes, leaf_refs
+    // entries) in parallel, the arrays are allocated once at their exact
+    // sizes (WideNode is 312 bytes: no regrowth), and every subtree is built
+    // in parallel into its own ranges (offsets by prefix sums in frontier
+    // order), so the result does not depend on the schedule.
     out.nodes.emplace_back();
     out.nodes[0].box = binary.nodes[0].box;
     if (binary.nodes[0].is_leaf()) {
@@ -316,28 +282,119 @@ Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config, s
         out.nodes[0].slots[0] = make_wide_leaf(binary, 0, out);
         return Result::success();
     }
-    work.push_back({0, 0});
+
+    // Top levels: wide internal roots (binary node ids), breadth first.
+    std::vector<uint32_t> top, frontier{0};
     uint32_t roots[kWidth];
-    while (!work.empty()) {
-        const Work w = work.back();
-        work.pop_back();
-        const int count = wide_roots(binary, dp, w.binary, roots);
-        uint32_t triangles = 0;
-        for (int c = 0; c < count; ++c) {
-            const uint32_t m = roots[c];
-            if (dp[m].as_leaf()) {
-                out.nodes[w.wide].slots[c] = make_wide_leaf(binary, m, out);
-                triangles += out.nodes[w.wide].slots[c].ref_count;
-            } else {
-                uint32_t child = 0;
-                if (Result r = add_internal_child(binary, m, w.wide, c, out, child); !r.ok()) return r;
-                work.push_back({m, child});
+    while (!frontier.empty() && frontier.size() < kFrontierItems) {
+        std::vector<uint32_t> next;
+        for (const uint32_t m : frontier) {
+            top.push_back(m);
+            const int count = wide_roots(binary, dp, m, roots);
+            for (int c = 0; c < count; ++c)
+                if (!dp[roots[c]].as_leaf()) next.push_back(roots[c]);
+        }
+        frontier.swap(next);
+    }
+    // Per frontier subtree: wide nodes and leaf_refs entries.
+    struct Span {
+        uint64_t nodes = 0, refs = 0;
+    };
+    std::vector<Span> span(frontier.size() + 1);
+    tbb::parallel_for(size_t(0), frontier.size(), [&](size_t f) {
+        Span s;
+        std::vector<uint32_t> pending{frontier[f]};
+        uint32_t r[kWidth];
+        while (!pending.empty()) {
+            const uint32_t m = pending.back();
+            pending.pop_back();
+            ++s.nodes;
+            const int count = wide_roots(binary, dp, m, r);
+            for (int c = 0; c < count; ++c) {
+                if (dp[r[c]].as_leaf()) s.refs += distinct_leaf_triangles(binary, r[c]);
+                else pending.push_back(r[c]);
             }
         }
-        // 8 leaves of <= 3 triangles: the 5-bit offsets always suffice.
-        assert(triangles <= uint32_t(kMaxNodeTriangles));
-        (void)triangles;
+        span[f + 1] = s;
+    });
+    uint64_t top_refs = 0;
+    for (const uint32_t m : top) {
+        const int count = wide_roots(binary, dp, m, roots);
+        for (int c = 0; c < count; ++c)
+            if (dp[roots[c]].as_leaf()) top_refs += distinct_leaf_triangles(binary, roots[c]);
     }
+    // Prefix sums: subtree f's nodes start at span[f].nodes, its entries at span[f].refs.
+    span[0] = {top.size(), top_refs};
+    for (size_t f = 1; f < span.size(); ++f) {
+        span[f].nodes += span[f - 1].nodes;
+        span[f].refs += span[f - 1].refs;
+    }
+    const uint64_t total_nodes = span.back().nodes, total_refs = span.back().refs;
+    if (total_nodes >= uint64_t(kInvalidIndex) || total_refs >= uint64_t(kInvalidIndex)) {
+        return Result::fail(Status::kInvalidArgument, 0, "collapse: too many wide nodes");
+    }
+    out.nodes.resize(size_t(total_nodes));
+    out.leaf_refs.resize(size_t(total_refs));
+
+    // Top nodes: wide node t is top[t]; breadth first, so the internal
+    // children met in order are top[1], top[2], ... then the frontier roots.
+    auto set_internal = [&](uint32_t parent, int slot, uint32_t m, uint32_t child) {
+        out.nodes[child].box = binary.nodes[m].box;
+        WideChild& s = out.nodes[parent].slots[size_t(slot)];
+        s.kind = WideChild::kInternal;
+        s.box = binary.nodes[m].box;
+        s.node = child;
+    };
+    {
+        uint32_t ref_cursor = 0;
+        size_t next = 1;
+        for (size_t t = 0; t < top.size(); ++t) {
+            const int count = wide_roots(binary, dp, top[t], roots);
+            for (int c = 0; c < count; ++c) {
+                const uint32_t m = roots[c];
+                if (dp[m].as_leaf()) {
+                    out.nodes[t].slots[c] = make_wide_leaf_at(binary, m, out, ref_cursor);
+                    continue;
+                }
+                const size_t k = next++;
+                const uint64_t child = k < top.size() ? k : span[k - top.size()].nodes;
+                set_internal(uint32_t(t), c, m, uint32_t(child));
+            }
+        }
+        assert(next == top.size() + frontier.size());
+        assert(ref_cursor == top_refs);
+    }
+    struct Work {
+        uint32_t binary;
+        uint32_t wide;
+    };
+    tbb::parallel_for(size_t(0), frontier.size(), [&](size_t f) {
+        uint32_t node_cursor = uint32_t(span[f].nodes);
+        uint32_t ref_cursor = uint32_t(span[f].refs);
+        std::vector<Work> work{{frontier[f], node_cursor++}};
+        uint32_t r[kWidth];
+        while (!work.empty()) {
+            const Work w = work.back();
+            work.pop_back();
+            const int count = wide_roots(binary, dp, w.binary, r);
+            uint32_t triangles = 0;
+            for (int c = 0; c < count; ++c) {
+                const uint32_t m = r[c];
+                if (dp[m].as_leaf()) {
+                    out.nodes[w.wide].slots[c] = make_wide_leaf_at(binary, m, out, ref_cursor);
+                    triangles += out.nodes[w.wide].slots[c].ref_count;
+                } else {
+                    const uint32_t child = node_cursor++;
+                    set_internal(w.wide, c, m, child);
+                    work.push_back({m, child});
+                }
+            }
+            // 8 leaves of <= 3 triangles: the 5-bit offsets always suffice.
+            assert(triangles <= uint32_t(kMaxNodeTriangles));
+            (void)triangles;
+        }
+        assert(node_cursor == span[f + 1].nodes && ref_cursor == span[f + 1].refs);
+    });
     return Result::success();
 }
 

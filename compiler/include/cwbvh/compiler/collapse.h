@@ -50,6 +50,24 @@ Result check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count);
 /// duplicates removed) to wide.leaf_refs and fills binary_leaf_ref.
 WideChild make_wide_leaf(const BinaryBvh& binary, uint32_t node, WideBvh& wide);
 
+/// make_wide_leaf into wide.leaf_refs[cursor...] (already sized: as many
+/// entries as distinct_leaf_triangles(binary, node)); advances `cursor`.
+/// Leaves written by different threads must not share binary leaves or entries.
+WideChild make_wide_leaf_at(const BinaryBvh& binary, uint32_t node, WideBvh& wide, uint32_t& cursor);
+
+/// An index range of binary nodes [begin, end).
+struct NodeRange {
+    uint32_t begin, end;
+};
+
+/// Cuts a tree in depth-first preorder (a node's subtree is the index range
+/// [node, end): the root's end is the node count, the left child's ends where
+/// the right child starts) top-down into subtrees of at most `max_nodes`
+/// nodes (`tasks`, disjoint ranges) and the nodes above them (`top`, parents
+/// before children). False if a node above the cut is not in preorder.
+bool preorder_cut(const BinaryBvh& binary, size_t max_nodes, std::vector<uint32_t>& top,
+                  std::vector<NodeRange>& tasks);
+
 /// Appends a wide node for binary node `binary_node` and makes it the internal
 /// child in slot `slot` of wide node `parent`; `child` gets its index.
 /// False (error set) when the wide node count would overflow 32 bits.
