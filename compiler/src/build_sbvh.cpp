@@ -454,6 +454,7 @@ const Bins& bin_references(size_t n, int nbins, Fill&& fill, Bins& result) {
 /// factor that maps a coordinate to a first guess of its bin.
 struct BinPlanes {
     float p[kMaxBins + 1];  // p[0..bins]; no heap allocation per pass
+    float q[kMaxBins + 1];  // p with q[0] = -inf, q[bins] = +inf: bin b is [q[b], q[b+1])
     int count = 0;          // bins
     float scale = 0.0f;     // ~bins / (hi - lo) (a guess's factor only); 0 for a zero-width range
     int bins() const { return count; }
@@ -470,6 +471,10 @@ BinPlanes bin_planes(float lo, float hi, int bins) {
         p[i] = float(double(lo) + (double(hi) - double(lo)) * double(i) / double(bins));
         p[i] = std::clamp(p[i], p[i - 1], hi);
     }
+    const float inf = std::numeric_limits<float>::infinity();
+    std::copy(p, p + bins + 1, bp.q);
+    bp.q[0] = -inf;
+    bp.q[bins] = inf;
     const double width = double(hi) - double(lo);
     // May round to inf for a width of a few denormals: bin_guess clamps.
     bp.scale = width > 0.0 ? float(double(bins) / width) : 0.0f;
@@ -491,6 +496,9 @@ inline int bin_guess(const BinPlanes& p, float x) {
 inline int bin_of_lo(const BinPlanes& p, float x) {
     const int bins = p.bins();
     int b = bin_guess(p, x);
+    // The usual case, the guess is right: the loops' condition with the outer
+    // planes as -inf / +inf.
+    if (p.q[b] <= x && x < p.q[b + 1]) return b;
     while (b > 0 && p[b] > x) --b;
     while (b < bins - 1 && p[b + 1] <= x) ++b;
     return b;
@@ -501,6 +509,7 @@ inline int bin_of_lo(const BinPlanes& p, float x) {
 inline int bin_of_hi(const BinPlanes& p, float x) {
     const int bins = p.bins();
     int b = bin_guess(p, x);
+    if (p.q[b] < x && x <= p.q[b + 1]) return b;  // the guess is right
     while (b > 0 && p[b] >= x) --b;
     while (b < bins - 1 && p[b + 1] < x) ++b;
     return b;
