@@ -73,17 +73,56 @@ Result check_wide(const WideBvh& wide) {
 
 }  // namespace
 
+namespace {
+
+/// The checks of one wide node's leaf references, in the serial encoder's
+/// order (slot order, then reference order), claiming ref_to_tri[ref] for
+/// records first_record, first_record + 1, ... (atomically: leaves checked
+/// in parallel must not both claim one reference). Writes no record.
+Result claim_leaf_refs(const WideBvh& wide, const Scene& scene, const WideNode& node, uint32_t first_record,
+                       std::vector<uint32_t>& ref_to_tri) {
+    uint32_t record = first_record;
+    for (int s = 0; s < kWidth; ++s) {
+        const WideChild& ch = node.slots[s];
+        if (ch.kind != WideChild::kLeaf) continue;
+        for (uint32_t k = 0; k < ch.ref_count; ++k, ++record) {
+            const uint32_t ref = ch.first_ref + k;
+            const uint32_t prim = wide.leaf_refs[ref];
+            uint32_t expected = kInvalidIndex;
+            if (!std::atomic_ref<uint32_t>(ref_to_tri[ref]).compare_exchange_strong(expected, record,
+                                                                                  std::memory_order_relaxed)) {
+                return Result::fail(Status::kInvalidArgument, 0,
+                                    "encode: leaf reference " + std::to_string(ref) + " used by two leaves");
+            }
+            if (prim >= scene.triangle_count()) {
+                return Result::fail(Status::kInvalidArgument, 0,
+                                    "encode: triangle id " + std::to_string(prim) + " out of range");
+            }
+            const auto& idx = scene.indices[prim];
+            for (int v = 0; v < 3; ++v) {
+                if (idx[v] >= scene.vertices.size()) {
+                    return Result::fail(Status::kInvalidArgument, 0,
+                                        "encode: triangle " + std::to_string(prim) + " has a bad vertex index");
+                }
+            }
+        }
+    }
+    return Result::success();
+}
+
+}  // namespace
+
 Result encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, float c_node,
                   float c_prim) {
     out = EncodedTree{};
     if (Result r = check_wide(wide); !r.ok()) return r;
     out.nodes.reserve(wide.nodes.size());
     out.node_to_wide.reserve(wide.nodes.size());
-    out.triangles.reserve(wide.leaf_refs.size());
-    out.ref_to_tri.assign(wide.leaf_refs.size(), kInvalidIndex);
 
-    // Depth first with contiguous sibling blocks (see encode.h): the stack
-    // holds (wide node, NODE index) pairs whose NODE slot is already allocated.
+    // Layout, serial (indices only): depth first with contiguous sibling
+    // blocks (see encode.h). The stack holds (wide node, NODE index) pairs
+    // whose NODE slot is already allocated; a node's leaf records are taken
+    // when it is visited. The records and boxes are filled in parallel below.
     struct Work {
         uint32_t wide;
         uint32_t out;
@@ -92,6 +131,9 @@ Result encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, f
     out.nodes.emplace_back();
     out.node_to_wide.push_back(0);
     uint64_t children = 0;
+    uint64_t records = 0;
+    size_t visited = 0;
+    bool too_many = false;
     while (!stack.empty()) {
         const Work w = stack.back();
         stack.pop_back();
@@ -118,70 +160,108 @@ Result encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, f
             const WideChild& ch = node.slots[s];
             if (ch.kind != WideChild::kLeaf) continue;
             if (!have_leaf) {
-                if (out.triangles.size() >= size_t(kInvalidIndex) - kMaxNodeTriangles) {
-                    return Result::fail(Status::kInvalidArgument, 0,
-                                        "encode: too many triangle records for 32-bit indices");
+                if (records >= uint64_t(kInvalidIndex) - kMaxNodeTriangles) {
+                    too_many = true;
+                    break;
                 }
-                cn.tri_base = uint32_t(out.triangles.size());
+                cn.tri_base = uint32_t(records);
                 have_leaf = true;
             }
-            const uint32_t offset = uint32_t(out.triangles.size()) - cn.tri_base;
+            const uint32_t offset = uint32_t(records) - cn.tri_base;
             // check_wide bounds the node's triangles by 24, so offset + count <= 24.
             assert(offset + ch.ref_count <= uint32_t(kMaxNodeTriangles));
             cn.meta[s] = make_meta_leaf(int(ch.ref_count), int(offset));
-            for (uint32_t k = 0; k < ch.ref_count; ++k) {
-                const uint32_t ref = ch.first_ref + k;
-                const uint32_t prim = wide.leaf_refs[ref];
-                if (out.ref_to_tri[ref] != kInvalidIndex) {
-                    return Result::fail(Status::kInvalidArgument, 0,
-                                        "encode: leaf reference " + std::to_string(ref) + " used by two leaves");
-                }
-                if (prim >= scene.triangle_count()) {
-                    return Result::fail(Status::kInvalidArgument, 0,
-                                        "encode: triangle id " + std::to_string(prim) + " out of range");
-                }
-                TriangleRecord t{};
-                const auto& idx = scene.indices[prim];
-                for (int v = 0; v < 3; ++v) {
-                    if (idx[v] >= scene.vertices.size()) {
-                        return Result::fail(Status::kInvalidArgument, 0,
-                                            "encode: triangle " + std::to_string(prim) + " has a bad vertex index");
-                    }
-                }
-                for (int a = 0; a < 3; ++a) {
-                    t.v0[a] = scene.vertices[idx[0]][a];
-                    t.v1[a] = scene.vertices[idx[1]][a];
-                    t.v2[a] = scene.vertices[idx[2]][a];
-                }
-                t.prim = prim;
-                out.ref_to_tri[ref] = uint32_t(out.triangles.size());
-                out.triangles.push_back(t);
-            }
+            records += ch.ref_count;
             out.max_leaf_triangles = ch.ref_count > out.max_leaf_triangles ? ch.ref_count : out.max_leaf_triangles;
         }
+        if (too_many) break;
+        ++visited;
         out.nodes[w.out] = cn;  // layout only: the boxes are quantized below
         for (int k = kid_count; k-- > 0;) stack.push_back(kids[k]);  // slot order: lowest slot next
     }
-    for (size_t r = 0; r < out.ref_to_tri.size(); ++r) {
-        if (out.ref_to_tri[r] == kInvalidIndex) {
-            return Result::fail(Status::kInvalidArgument, 0,
-                                "encode: leaf reference " + std::to_string(r) + " is in no leaf");
+
+    // A leaf error: the checks again, serially in visit order over the first
+    // `limit` visited nodes, so that the first failure reports (as the serial
+    // encoder did); success if none fails there.
+    auto first_leaf_error = [&](size_t limit) -> Result {
+        std::vector<uint32_t>(wide.leaf_refs.size(), kInvalidIndex).swap(out.ref_to_tri);
+        std::vector<uint32_t> order{0};
+        uint32_t record = 0;
+        for (size_t v = 0; v < limit && !order.empty(); ++v) {
+            const WideNode& node = wide.nodes[order.back()];
+            order.pop_back();
+            if (Result r = claim_leaf_refs(wide, scene, node, record, out.ref_to_tri); !r.ok()) return r;
+            for (const WideChild& ch : node.slots) record += ch.kind == WideChild::kLeaf ? ch.ref_count : 0;
+            for (int s = kWidth; s-- > 0;)
+                if (node.slots[s].kind == WideChild::kInternal) order.push_back(node.slots[s].node);
         }
+        return Result::success();
+    };
+    if (too_many) {
+        if (Result r = first_leaf_error(visited); !r.ok()) return r;
+        return Result::fail(Status::kInvalidArgument, 0, "encode: too many triangle records for 32-bit indices");
     }
-    // Quantization, in parallel: each node's exponents and child boxes depend
-    // on its own children's exact boxes only. The first failing node (lowest
-    // index) reports, whatever the schedule.
+
+    // In parallel, per node: its leaves' triangle records (with their checks)
+    // and the quantization (a node's exponents and child boxes depend on its
+    // own children's exact boxes only). Failures are named afterwards in the
+    // serial encoder's order: leaf errors (first in visit order), a reference
+    // in no leaf, then the lowest failing node's quantization.
+    out.ref_to_tri.assign(wide.leaf_refs.size(), kInvalidIndex);
+    out.triangles.resize(size_t(records));
+    std::atomic<bool> leaf_bad{false};
     std::atomic<size_t> first_bad{out.nodes.size()};
     tbb::parallel_for(tbb::blocked_range<size_t>(0, out.nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
+            const WideNode& node = wide.nodes[out.node_to_wide[i]];
+            CwbvhNode& cn = out.nodes[i];
+            if (!claim_leaf_refs(wide, scene, node, cn.tri_base, out.ref_to_tri).ok()) {
+                leaf_bad.store(true, std::memory_order_relaxed);
+            } else {
+                uint32_t record = cn.tri_base;
+                for (int s = 0; s < kWidth; ++s) {
+                    const WideChild& ch = node.slots[s];
+                    if (ch.kind != WideChild::kLeaf) continue;
+                    for (uint32_t k = 0; k < ch.ref_count; ++k, ++record) {
+                        const uint32_t prim = wide.leaf_refs[ch.first_ref + k];
+                        const auto& idx = scene.indices[prim];
+                        TriangleRecord& t = out.triangles[record];
+                        for (int a = 0; a < 3; ++a) {
+                            t.v0[a] = scene.vertices[idx[0]][a];
+                            t.v1[a] = scene.vertices[idx[1]][a];
+                            t.v2[a] = scene.vertices[idx[2]][a];
+                        }
+                        t.prim = prim;
+                    }
+                }
+            }
             Aabb boxes[kWidth];
-            const uint8_t used = child_boxes(wide.nodes[out.node_to_wide[i]], boxes);
-            if (!quantize_node(boxes, used, out.nodes[i]).ok()) {
+            const uint8_t used = child_boxes(node, boxes);
+            if (!quantize_node(boxes, used, cn).ok()) {
                 size_t seen = first_bad.load();
                 while (i < seen && !first_bad.compare_exchange_weak(seen, i)) {}
             }
         }
     });
+    if (leaf_bad.load()) {
+        Result r = first_leaf_error(out.nodes.size());
+        if (r.ok()) r = Result::fail(Status::kInternal, 0, "encode: parallel and serial leaf checks disagree");
+        return r;
+    }
+    std::atomic<size_t> first_missing{out.ref_to_tri.size()};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, out.ref_to_tri.size(), 1 << 14),
+                      [&](const tbb::blocked_range<size_t>& r) {
+                          for (size_t k = r.begin(); k != r.end(); ++k) {
+                              if (out.ref_to_tri[k] != kInvalidIndex) continue;
+                              size_t seen = first_missing.load();
+                              while (k < seen && !first_missing.compare_exchange_weak(seen, k)) {}
+                              return;
+                          }
+                      });
+    if (const size_t m = first_missing.load(); m < out.ref_to_tri.size()) {
+        return Result::fail(Status::kInvalidArgument, 0,
+                            "encode: leaf reference " + std::to_string(m) + " is in no leaf");
+    }
     if (const size_t bad = first_bad.load(); bad < out.nodes.size()) {
         Aabb boxes[kWidth];
         const uint8_t used = child_boxes(wide.nodes[out.node_to_wide[bad]], boxes);

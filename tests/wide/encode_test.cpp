@@ -3,9 +3,12 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <map>
+
+#include <tbb/task_arena.h>
 
 #include "../result_util.h"
 #include "cwbvh/compiler/auction.h"
@@ -284,6 +287,77 @@ TEST(Encode, RejectsBadInput) {
     bad.nodes[0].slots[0].ref_count = 4;
     EXPECT_FALSE(::cwbvh::test::ok(encode_cwbvh(bad, scene, t), error));
     EXPECT_FALSE(::cwbvh::test::ok(encode_cwbvh(WideBvh{}, scene, t), error));
+}
+
+// The encoder, the verifier and check_binary run in parallel; a failure must
+// still name the failure the serial order meets first, whatever the threads.
+TEST(Encode, ErrorsNameTheSameFailureForAnyThreadCount) {
+    const Scene scene = wide_test::random_scene(30000, 21);
+    Pipeline p;
+    run(scene, wide_test::build_binary(scene), kCollapseOptimal, p);
+    ASSERT_GT(p.tree.nodes.size(), 3000u);
+    auto messages = [](auto&& f) {
+        std::string one, many;
+        tbb::task_arena(1).execute([&] { one = f(); });
+        tbb::task_arena(4).execute([&] { many = f(); });
+        EXPECT_EQ(one, many);
+        EXPECT_FALSE(one.empty());
+        return one;
+    };
+    auto encode_error = [&](const WideBvh& wide, const Scene& sc) {
+        return [&wide, &sc] {
+            EncodedTree t;
+            std::string error;
+            return ::cwbvh::test::ok(encode_cwbvh(wide, sc, t), error) ? std::string() : error;
+        };
+    };
+    // Triangle ids out of range in many leaves.
+    Scene small = scene;
+    small.indices.resize(scene.indices.size() / 2);
+    EXPECT_NE(messages(encode_error(p.wide, small)).find("out of range"), std::string::npos);
+    // Two leaves claiming one reference (and so one reference in no leaf).
+    WideBvh shared = p.wide;
+    std::vector<WideChild*> leaves;
+    for (WideNode& n : shared.nodes)
+        for (WideChild& c : n.slots)
+            if (c.kind == WideChild::kLeaf && c.ref_count == 1) leaves.push_back(&c);
+    ASSERT_GT(leaves.size(), 100u);
+    leaves[leaves.size() - 1]->first_ref = leaves[leaves.size() / 2]->first_ref;
+    leaves[10]->first_ref = leaves[leaves.size() - 7]->first_ref;
+    EXPECT_NE(messages(encode_error(shared, scene)).find("used by two leaves"), std::string::npos);
+    // The verifier: wrong vertices in several records.
+    EncodedTree bad_tree = p.tree;
+    for (size_t t : {bad_tree.triangles.size() - 3, bad_tree.triangles.size() / 3, size_t(5)})
+        bad_tree.triangles[t].v1[2] += 1.0f;
+    const std::string verify = messages([&] {
+        std::string error;
+        return ::cwbvh::test::ok(verify_encoded(bad_tree, p.wide, scene), error) ? std::string() : error;
+    });
+    EXPECT_NE(verify.find("wrong vertices"), std::string::npos) << verify;
+    // check_binary: the lowest bad node names the failure.
+    BinaryBvh bad_binary = p.binary;
+    bad_binary.nodes[bad_binary.nodes.size() - 2].box.lo[0] = std::nanf("");
+    bad_binary.nodes[777].box.hi[1] = -1e30f;
+    const std::string binary_error = messages([&] {
+        WideBvh w;
+        std::string error;
+        return ::cwbvh::test::ok(collapse_wide(bad_binary, CollapseConfig{}, w), error) ? std::string() : error;
+    });
+    EXPECT_NE(binary_error.find("node 777 "), std::string::npos) << binary_error;
+    // A leaf without a triangle.
+    bad_binary = p.binary;
+    for (size_t i = bad_binary.nodes.size(); i-- > 0;) {
+        if (bad_binary.nodes[i].is_leaf()) {
+            bad_binary.nodes[i].child[0] = kInvalidIndex;
+            break;
+        }
+    }
+    EXPECT_NE(messages([&] {
+                  WideBvh w;
+                  std::string error;
+                  return ::cwbvh::test::ok(collapse_wide(bad_binary, CollapseConfig{}, w), error) ? std::string() : error;
+              }).find("has no triangle"),
+              std::string::npos);
 }
 
 TEST(Encode, Bunny) {
