@@ -206,31 +206,54 @@ void chop_triangle_estimate(const std::array<Vec3, 3>& tri, int axis, const floa
         }
         return k;
     };
+    // The part of slab s is kept in named scalars (u, v, axis order) and
+    // written to out[s] field by field: assembling it in an Aabb and copying
+    // that made every slab wait on a failed store-to-load forward.
+    const float ref_lo_u = ref.lo[u], ref_hi_u = ref.hi[u], ref_lo_v = ref.lo[v], ref_hi_v = ref.hi[v];
+    const float ref_lo_a = ref.lo[axis], ref_hi_a = ref.hi[axis];
     Cut lower = cut(planes[0]);
     for (int s = 0; s < slabs; ++s) {
         const float lo = planes[s], hi = planes[s + 1];
         const Cut upper = cut(hi);
-        Aabb part;
-        part.lo[u] = std::min(lower.lo_u, upper.lo_u);
-        part.hi[u] = std::max(lower.hi_u, upper.hi_u);
-        part.lo[v] = std::min(lower.lo_v, upper.lo_v);
-        part.hi[v] = std::max(lower.hi_v, upper.hi_v);
-        if (lower.any) part.lo[axis] = part.hi[axis] = lo;
+        float lu = std::min(lower.lo_u, upper.lo_u), hu = std::max(lower.hi_u, upper.hi_u);
+        float lv = std::min(lower.lo_v, upper.lo_v), hv = std::max(lower.hi_v, upper.hi_v);
+        float la = kInf, ha = -kInf;
+        if (lower.any) la = ha = lo;
         if (upper.any) {
-            part.lo[axis] = std::min(part.lo[axis], hi);
-            part.hi[axis] = std::max(part.hi[axis], hi);
+            la = std::min(la, hi);
+            ha = std::max(ha, hi);
         }
         for (int k = 0; k < 3; ++k) {  // vertices inside the slab
             const float c = tri[k][axis];
-            if (c >= lo && c <= hi) part.grow(tri[k]);
+            if (c >= lo && c <= hi) {
+                la = std::min(la, c);
+                ha = std::max(ha, c);
+                lu = std::min(lu, tri[k][u]);
+                hu = std::max(hu, tri[k][u]);
+                lv = std::min(lv, tri[k][v]);
+                hv = std::max(hv, tri[k][v]);
+            }
         }
-        for (int j = 0; j < 3; ++j) {
-            part.lo[j] = std::max(part.lo[j], ref.lo[j]);
-            part.hi[j] = std::min(part.hi[j], ref.hi[j]);
+        lu = std::max(lu, ref_lo_u);
+        hu = std::min(hu, ref_hi_u);
+        lv = std::max(lv, ref_lo_v);
+        hv = std::min(hv, ref_hi_v);
+        la = std::max(std::max(la, ref_lo_a), lo);
+        ha = std::min(std::min(ha, ref_hi_a), hi);
+        Aabb& o = out[s];
+        if (lu <= hu && lv <= hv && la <= ha) {
+            o.lo[u] = lu;
+            o.hi[u] = hu;
+            o.lo[v] = lv;
+            o.hi[v] = hv;
+            o.lo[axis] = la;
+            o.hi[axis] = ha;
+        } else {
+            for (int j = 0; j < 3; ++j) {
+                o.lo[j] = kInf;
+                o.hi[j] = -kInf;
+            }
         }
-        part.lo[axis] = std::max(part.lo[axis], lo);
-        part.hi[axis] = std::min(part.hi[axis], hi);
-        out[s] = part.empty() ? Aabb{} : part;
         lower = upper;
     }
 }
