@@ -1,6 +1,10 @@
 // verify_encoded(): decode-and-check self test of the NODE/TRIS sections
 // against the exact wide tree (used by tests and by cwbvhc's verify pass).
+#include <atomic>
 #include <string>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "cwbvh/compiler/encode.h"
 #include "cwbvh/compiler/quantize.h"
@@ -9,12 +13,13 @@
 namespace cwbvh::compiler {
 
 namespace {
+
 Result fail(const std::string& what, size_t node) {
     return Result::fail(Status::kInternal, 0, "verify: node " + std::to_string(node) + ": " + what);
 }
-}  // namespace
 
-Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene& scene) {
+/// The serial check: a walk from the root, the first failure it meets reports.
+Result verify_encoded_serial(const EncodedTree& tree, const WideBvh& wide, const Scene& scene) {
     const size_t n = tree.nodes.size();
     if (n == 0 || tree.node_to_wide.size() != n || n != wide.nodes.size()) {
         return Result::fail(Status::kInternal, 0, "verify: node count mismatch");
@@ -96,6 +101,98 @@ Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene&
         }
     }
     return Result::success();
+}
+
+}  // namespace
+
+/// In parallel over all nodes (not a walk): each node's own checks, and
+/// marks for the nodes and records its slots reach (bit 0: once, bit 1:
+/// again). That passes exactly when the walk does: every node but the root
+/// reached once from a smaller index means every node is on the walk.
+/// On any failure the serial walk runs to name the same first failure.
+Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene& scene) {
+    const size_t n = tree.nodes.size();
+    if (n == 0 || tree.node_to_wide.size() != n || n != wide.nodes.size() ||
+        tree.triangles.size() != wide.leaf_refs.size() || tree.ref_to_tri.size() != wide.leaf_refs.size())
+        return verify_encoded_serial(tree, wide, scene);
+    std::vector<uint8_t> node_seen(n, 0), tri_seen(tree.triangles.size(), 0), prim_seen(scene.triangle_count(), 0);
+    auto mark = [](uint8_t& m) {
+        std::atomic_ref<uint8_t> a(m);
+        if (a.fetch_or(1, std::memory_order_relaxed) & 1) a.fetch_or(2, std::memory_order_relaxed);
+    };
+    std::atomic<bool> bad{false};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 512), [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t i = range.begin(); i != range.end(); ++i) {
+            const CwbvhNode& cn = tree.nodes[i];
+            bool ok = tree.node_to_wide[i] < wide.nodes.size();
+            for (int a = 0; a < 3 && ok; ++a) ok = cn.e[a] >= 1 && cn.e[a] <= 254;
+            if (!ok) {
+                bad.store(true, std::memory_order_relaxed);
+                return;
+            }
+            const WideNode& wn = wide.nodes[tree.node_to_wide[i]];
+            for (int s = 0; s < kWidth && ok; ++s) {
+                const WideChild& ch = wn.slots[s];
+                const uint8_t m = cn.meta[s];
+                const bool bit = (cn.imask >> s) & 1;
+                if (ch.kind == WideChild::kEmpty) {
+                    ok = m == kMetaEmpty && !bit;
+                    continue;
+                }
+                const Aabb dec = decode_child_box(cn, s);
+                for (int a = 0; a < 3; ++a) {
+                    ok = ok && cn.q_lo[a][s] <= cn.q_hi[a][s] && dec.lo[a] <= ch.box.lo[a] && dec.hi[a] >= ch.box.hi[a];
+                }
+                if (!ok) break;
+                if (ch.kind == WideChild::kInternal) {
+                    const uint32_t c = internal_child_index(cn, s);
+                    ok = m == make_meta_internal(s) && bit && meta_is_internal(m) && c < n && c > i &&
+                         tree.node_to_wide[c] == ch.node;
+                    if (ok) mark(node_seen[c]);
+                    continue;
+                }
+                ok = !bit && meta_is_leaf(m) && meta_leaf_count(m) == int(ch.ref_count);
+                const uint32_t off = uint32_t(meta_leaf_offset(m));
+                ok = ok && off + ch.ref_count <= uint32_t(kMaxNodeTriangles) &&
+                     uint64_t(cn.tri_base) + off + ch.ref_count <= tree.triangles.size();
+                for (uint32_t k = 0; k < ch.ref_count && ok; ++k) {
+                    const uint32_t t = cn.tri_base + off + k;
+                    const uint32_t ref = ch.first_ref + k;
+                    const TriangleRecord& rec = tree.triangles[t];
+                    mark(tri_seen[t]);
+                    ok = tree.ref_to_tri[ref] == t && rec.prim == wide.leaf_refs[ref] && rec.prim < scene.triangle_count();
+                    if (!ok) break;
+                    const auto v = scene.triangle(rec.prim);
+                    for (int a = 0; a < 3; ++a)
+                        ok = ok && rec.v0[a] == v[0][a] && rec.v1[a] == v[1][a] && rec.v2[a] == v[2][a];
+                    std::atomic_ref<uint8_t>(prim_seen[rec.prim]).store(1, std::memory_order_relaxed);
+                }
+            }
+            if (!ok) {
+                bad.store(true, std::memory_order_relaxed);
+                return;
+            }
+        }
+    });
+    auto all_once = [&](const std::vector<uint8_t>& seen, size_t from) {
+        if (bad.load()) return;
+        tbb::parallel_for(tbb::blocked_range<size_t>(from, seen.size(), 1 << 14), [&](const tbb::blocked_range<size_t>& r) {
+            for (size_t k = r.begin(); k != r.end(); ++k) {
+                if (seen[k] != 1) {
+                    bad.store(true, std::memory_order_relaxed);
+                    return;
+                }
+            }
+        });
+    };
+    if (!bad.load() && node_seen[0] != 0) bad.store(true);
+    all_once(node_seen, 1);
+    all_once(tri_seen, 0);
+    all_once(prim_seen, 0);
+    if (!bad.load()) return Result::success();
+    Result r = verify_encoded_serial(tree, wide, scene);
+    if (r.ok()) r = Result::fail(Status::kInternal, 0, "verify: parallel and serial checks disagree");
+    return r;
 }
 
 }  // namespace cwbvh::compiler
