@@ -234,6 +234,7 @@ Split sweep_sorted(size_t n, At&& at) {
     static thread_local std::vector<Box4> right_box;
     right_area.resize(n);
     right_box.resize(n);
+    Box4 best_left, best_right;  // converted to best.left/right once, at the end
     for (int a = 0; a < 3; ++a) {
         Box4 acc;
         for (size_t i = n; i-- > 1;) {  // right_box[i] = union of sorted[i..n)
@@ -254,12 +255,16 @@ Split sweep_sorted(size_t n, At&& at) {
                 best.axis = a;
                 best.kind = Split::kSweep;
                 best.index = k;
-                best.left = left.aabb();
-                best.right = right_box[k].aabb();
+                best_left = left;
+                best_right = right_box[k];
                 best.nl = k;
                 best.nr = n - k;
             }
         }
+    }
+    if (best.axis >= 0) {
+        best.left = best_left.aabb();
+        best.right = best_right.aabb();
     }
     return best;
 }
@@ -771,10 +776,13 @@ private:
             if (a == best) continue;
             uint8_t right[kSweepMaxRefs];
             size_t nl = 0, nr = 0;
-            for (size_t i = 0; i < n; ++i) {
+            for (size_t i = 0; i < n; ++i) {  // without branches: goes_left is data
                 const uint8_t r = s.order[a][i];
-                if (goes_left[r]) s.order[a][nl++] = r;  // nl <= i: never overwrites an unread entry
-                else right[nr++] = r;
+                const size_t gl = goes_left[r];
+                s.order[a][nl] = r;  // nl <= i: never overwrites an unread entry
+                right[nr] = r;
+                nl += gl;
+                nr += 1 - gl;
             }
             std::copy(right, right + nr, s.order[a] + nl);
         }
