@@ -9,9 +9,14 @@
 #include "cwbvh/compiler/emit.h"
 
 #include <array>
+#include <atomic>
 #include <cstring>
 #include <optional>
 #include <span>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include "cwbvh/compiler/build.h"
 #include "cwbvh/compiler/collapse.h"
@@ -65,10 +70,18 @@ BuildInfo build_info(const EmitInput& in, const EmitResult& out) {
 }  // namespace
 
 Aabb scene_box(const Scene& scene) {
-    Aabb box;
-    for (const auto& tri : scene.indices)
-        for (uint32_t v : tri) box.grow(scene.vertices[v]);
-    return box;
+    // Min/max are exact: any partition gives the same box.
+    return tbb::parallel_reduce(
+        tbb::blocked_range<size_t>(0, scene.indices.size(), 1 << 14), Aabb{},
+        [&](const tbb::blocked_range<size_t>& r, Aabb box) {
+            for (size_t i = r.begin(); i != r.end(); ++i)
+                for (uint32_t v : scene.indices[i]) box.grow(scene.vertices[v]);
+            return box;
+        },
+        [](Aabb a, const Aabb& b) {
+            a.grow(b);
+            return a;
+        });
 }
 
 Result encode_scene(const EmitInput& in, EmitResult& out) {
@@ -139,13 +152,21 @@ Result encode_scene(const EmitInput& in, EmitResult& out) {
         if (source_range_total(out.source_ranges) != sources.size()) {
             return Result::fail(Status::kInternal, 0, "internal error: PMAP ranges do not cover the stored triangles");
         }
-        for (size_t i = 0; i < sources.size(); ++i) {
-            const std::optional<SourceRef> r = find_source(out.source_ranges, uint32_t(i));
-            if (!r || std::memcmp(&*r, &sources[i], sizeof(SourceRef)) != 0) {
-                return Result::fail(
-                    Status::kInternal, 0,
-                    "internal error: PMAP range decodes stored triangle " + std::to_string(i) + " wrongly");
+        // In parallel; the lowest wrong triangle reports.
+        std::atomic<size_t> first_wrong{sources.size()};
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, sources.size(), 1 << 14), [&](const tbb::blocked_range<size_t>& b) {
+            for (size_t i = b.begin(); i != b.end(); ++i) {
+                const std::optional<SourceRef> r = find_source(out.source_ranges, uint32_t(i));
+                if (!r || std::memcmp(&*r, &sources[i], sizeof(SourceRef)) != 0) {
+                    size_t seen = first_wrong.load();
+                    while (i < seen && !first_wrong.compare_exchange_weak(seen, i)) {}
+                    return;
+                }
             }
+        });
+        if (const size_t i = first_wrong.load(); i < sources.size()) {
+            return Result::fail(Status::kInternal, 0,
+                                "internal error: PMAP range decodes stored triangle " + std::to_string(i) + " wrongly");
         }
     }
     return Result::success();
