@@ -147,6 +147,10 @@ struct RefLess {
         const float cx = centroid(x, a), cy = centroid(y, a);
         if (cx != cy) return cx < cy;
         if (x.tri != y.tri) return x.tri < y.tri;
+        return box_less(x, y);
+    }
+    /// The last key: the boxes, coordinate by coordinate.
+    static bool box_less(const Ref& x, const Ref& y) {
         for (int j = 0; j < 3; ++j) {
             if (x.box.lo[j] != y.box.lo[j]) return x.box.lo[j] < y.box.lo[j];
             if (x.box.hi[j] != y.box.hi[j]) return x.box.hi[j] < y.box.hi[j];
@@ -154,6 +158,18 @@ struct RefLess {
         return false;
     }
 };
+
+/// RefLess{a}'s first two keys as one integer: the centroid's bits mapped to
+/// an unsigned order (after + 0.0f, which makes -0 and +0, equal centroids
+/// for RefLess, the same bits), then the triangle id. key(x) < key(y) iff
+/// RefLess orders x before y on those keys; equal keys leave box_less.
+inline uint64_t ref_key(const Ref& r, int a) {
+    const float c = centroid(r, a) + 0.0f;
+    uint32_t bits;
+    std::memcpy(&bits, &c, sizeof bits);
+    bits = (bits & 0x80000000u) ? ~bits : (bits | 0x80000000u);
+    return (uint64_t(bits) << 32) | r.tri;
+}
 
 /// Union that is safe for empty boxes. (Aabb::grow(const Aabb&) grows by the
 /// two corner points, which turns an empty argument's +inf/-inf corners into
@@ -723,9 +739,13 @@ private:
         RefList().swap(refs);  // free the parent's list before recursing
         uint8_t order[4][kSweepMaxRefs];
         for (size_t i = 0; i < n; ++i) order[3][i] = uint8_t(i);  // list order: as handed down
-        for (int a = 0; a < 3; ++a) {
+        uint64_t key[kSweepMaxRefs];
+        for (int a = 0; a < 3; ++a) {  // RefLess{a} order, its keys computed once per reference
+            for (size_t i = 0; i < n; ++i) key[i] = ref_key(local[i], a);
             std::copy(order[3], order[3] + n, order[a]);
-            std::sort(order[a], order[a] + n, [&](uint8_t x, uint8_t y) { return RefLess{a}(local[x], local[y]); });
+            std::sort(order[a], order[a] + n, [&](uint8_t x, uint8_t y) {
+                return key[x] != key[y] ? key[x] < key[y] : RefLess::box_less(local[x], local[y]);
+            });
         }
         return build_small(out, SmallSet{local, {order[0], order[1], order[2]}, order[3], n}, budget, depth, chops);
     }
