@@ -105,10 +105,12 @@ struct WideChild {
     enum Kind : uint8_t { kEmpty, kInternal, kLeaf } kind = kEmpty;
     uint8_t ref_count = 0;           ///< kLeaf: 1..3 (after de-duplication)
     Aabb box;                        ///< exact (unquantized) bounds: the collapsed binary node's box
-    uint32_t node = kInvalidIndex;   ///< kInternal: index into WideBvh::nodes
-    uint32_t first_ref = 0;          ///< kLeaf: first index into WideBvh::leaf_refs
+    union {                          // one index per kind (GCC/Clang: either name reads the same bits)
+        uint32_t node = kInvalidIndex;  ///< kInternal: index into WideBvh::nodes
+        uint32_t first_ref;             ///< kLeaf: first index into WideBvh::leaf_refs
+    };
 };
-static_assert(sizeof(WideChild) == 36, "WideChild: 36 bytes (eight per WideNode)");
+static_assert(sizeof(WideChild) == 32, "WideChild: 32 bytes (eight per WideNode)");
 struct WideNode {
     Aabb box;                        ///< exact bounds (the binary node this wide node came from)
     std::array<WideChild, 8> slots;
