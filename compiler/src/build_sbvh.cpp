@@ -30,6 +30,7 @@
 #include <utility>
 #include <vector>
 
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 #include <tbb/blocked_range.h>
 #include <tbb/task_arena.h>
@@ -1111,11 +1112,13 @@ Result build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out,
 
     auto run = [&] {
         RefList refs(tris);
-        for (size_t i = 0; i < tris; ++i) {
-            Aabb b;
-            for (const Vec3& v : scene.triangle(i)) b.grow(v);
-            refs[i] = Ref{b, uint32_t(i)};
-        }
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, tris, 16384), [&](const tbb::blocked_range<size_t>& r) {
+            for (size_t i = r.begin(); i != r.end(); ++i) {
+                Aabb b;
+                for (const Vec3& v : scene.triangle(i)) b.grow(v);
+                refs[i] = Ref{b, uint32_t(i)};
+            }
+        });
         Builder builder(scene, config, progress);
         const std::unique_ptr<Piece> root = builder.build(refs, extra);
         out.nodes.clear();
