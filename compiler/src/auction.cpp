@@ -71,15 +71,17 @@ void auction_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::a
     }
 }
 
-std::array<std::array<double, 8>, 8> slot_cost_table(const WideNode& node) {
+std::array<std::array<double, 8>, 8> slot_cost_table(const WideBvh& wide, const WideNode& node) {
     std::array<std::array<double, 8>, 8> cost{};
     double centre[3];
-    for (int a = 0; a < 3; ++a) centre[a] = 0.5 * (double(node.box.lo[a]) + double(node.box.hi[a]));
+    const Aabb& box = wide.box(node);
+    for (int a = 0; a < 3; ++a) centre[a] = 0.5 * (double(box.lo[a]) + double(box.hi[a]));
     for (int i = 0; i < kWidth; ++i) {
         const WideChild& ch = node.slots[i];
         if (ch.kind == WideChild::kEmpty) continue;
         double rel[3];
-        for (int a = 0; a < 3; ++a) rel[a] = 0.5 * (double(ch.box.lo[a]) + double(ch.box.hi[a])) - centre[a];
+        const Aabb& child = wide.box(ch);
+        for (int a = 0; a < 3; ++a) rel[a] = 0.5 * (double(child.lo[a]) + double(child.hi[a])) - centre[a];
         for (int s = 0; s < kWidth; ++s) {
             double c = 0.0;
             // d_s: -1 on axis a where bit (2 - a) of s is set (bit 2 = x, bit 1 = y, bit 0 = z).
@@ -120,7 +122,7 @@ void assign_slots(WideBvh& wide, Progress* progress) {
         for (size_t k = r.begin(); k != r.end(); ++k) {
             WideNode& node = wide.nodes[k];
             std::array<int, 8> slot_of{};
-            assign_min_cost(slot_cost_table(node), slot_of);
+            assign_min_cost(slot_cost_table(wide, node), slot_of);
             std::array<WideChild, 8> slots;
             for (int i = 0; i < kWidth; ++i) slots[slot_of[i]] = node.slots[i];
             node.slots = slots;

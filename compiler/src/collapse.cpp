@@ -229,7 +229,7 @@ uint32_t distinct_leaf_triangles(const BinaryBvh& binary, uint32_t node) {
 WideChild make_wide_leaf(const BinaryBvh& binary, uint32_t node, WideBvh& wide) {
     WideChild child;
     child.kind = WideChild::kLeaf;
-    child.box = binary.nodes[node].box;
+    child.bnode = node;
     child.first_ref = uint32_t(wide.leaf_refs.size());
     for_each_leaf(binary, node, [&](uint32_t leaf) {
         const uint32_t p = binary.nodes[leaf].prim();
@@ -247,7 +247,7 @@ WideChild make_wide_leaf(const BinaryBvh& binary, uint32_t node, WideBvh& wide) 
 WideChild make_wide_leaf_at(const BinaryBvh& binary, uint32_t node, WideBvh& wide, uint32_t& cursor) {
     WideChild child;
     child.kind = WideChild::kLeaf;
-    child.box = binary.nodes[node].box;
+    child.bnode = node;
     child.first_ref = cursor;
     for_each_leaf(binary, node, [&](uint32_t leaf) {
         const uint32_t p = binary.nodes[leaf].prim();
@@ -269,10 +269,10 @@ Result add_internal_child(const BinaryBvh& binary, uint32_t binary_node, uint32_
     }
     child = uint32_t(out.nodes.size());
     out.nodes.emplace_back();
-    out.nodes[child].box = binary.nodes[binary_node].box;
+    out.nodes[child].bnode = binary_node;
     WideChild& s = out.nodes[parent].slots[size_t(slot)];
     s.kind = WideChild::kInternal;
-    s.box = binary.nodes[binary_node].box;
+    s.bnode = binary_node;
     s.node = child;
     return Result::success();
 }
@@ -282,6 +282,7 @@ Result add_internal_child(const BinaryBvh& binary, uint32_t binary_node, uint32_
 Result collapse_wide(const BinaryBvh& binary, const CollapseConfig& config, WideBvh& out,
                    Progress* progress) {
     out = WideBvh{};
+    out.binary = &binary;
     if (config.max_leaf < 1 || config.max_leaf > kMaxLeafTriangles) {
         return Result::fail(Status::kInvalidArgument, 0,
                             "collapse: max_leaf must be 1.." + std::to_string(kMaxLeafTriangles));

@@ -23,7 +23,7 @@ Result collapse_greedy(const BinaryBvh& binary, const CollapseConfig& config,
     };
     std::vector<Work> work{{0, 0}};
     out.nodes.emplace_back();
-    out.nodes[0].box = binary.nodes[0].box;
+    out.nodes[0].bnode = 0;
     while (!work.empty()) {
         const Work w = work.back();
         work.pop_back();

@@ -276,7 +276,7 @@ Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config, s
     // in parallel into its own ranges (offsets by prefix sums in frontier
     // order), so the result does not depend on the schedule.
     out.nodes.emplace_back();
-    out.nodes[0].box = binary.nodes[0].box;
+    out.nodes[0].bnode = 0;
     if (binary.nodes[0].is_leaf()) {
         // Root forced internal: one wide leaf child holding the single reference.
         out.nodes[0].slots[0] = make_wide_leaf(binary, 0, out);
@@ -339,10 +339,10 @@ Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config, s
     // Top nodes: wide node t is top[t]; breadth first, so the internal
     // children met in order are top[1], top[2], ... then the frontier roots.
     auto set_internal = [&](uint32_t parent, int slot, uint32_t m, uint32_t child) {
-        out.nodes[child].box = binary.nodes[m].box;
+        out.nodes[child].bnode = m;
         WideChild& s = out.nodes[parent].slots[size_t(slot)];
         s.kind = WideChild::kInternal;
-        s.box = binary.nodes[m].box;
+        s.bnode = m;
         s.node = child;
     };
     {

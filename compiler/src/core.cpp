@@ -40,10 +40,12 @@ Result compile_binary(const Scene& scene, BinaryBvh& binary, const CoreOptions& 
         }))
         return r;
 
-    // The binary tree is only needed again for the optional BVH2/BV2L section;
-    // without it, it is the largest structure alive (32 bytes per node).
+    // The binary tree holds the wide tree's exact boxes until the nodes are
+    // quantized; then it is only needed for the optional BVH2/BV2L section.
+    // Without it, it is the largest structure alive (32 bytes per node): freed
+    // before the triangle records are allocated.
     const bool keep_binary = options.emit.bvh2 != Bvh2Section::kNone;
-    if (!keep_binary) BinaryBvh{}.nodes.swap(binary.nodes);
+    if (!keep_binary) emit.boxes_done = [&binary] { BinaryBvh{}.nodes.swap(binary.nodes); };
     emit.binary = keep_binary ? &binary : nullptr;
     emit.wide = &wide;
     run_phase(run, "encode", 0, [&] {

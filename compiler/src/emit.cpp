@@ -100,14 +100,22 @@ Result encode_scene(const EmitInput& in, EmitResult& out) {
         out.tree = EncodedTree{};
         out.tree.nodes.push_back(root);
     } else {
-        if (Result r = encode_cwbvh(*in.wide, *in.scene, out.tree, in.collapse->cost_node, in.collapse->cost_prim);
-            !r.ok())
-            return r;
-        if (options.verify) {
-            if (Result r = verify_encoded(out.tree, *in.wide, *in.scene); !r.ok())
+        // Nodes (they read the exact boxes, i.e. the binary tree), then the
+        // binary tree may go (boxes_done) before the triangle records exist.
+        auto verify = [&](VerifyPart part) {
+            if (!options.verify) return Result::success();
+            if (Result r = verify_encoded(out.tree, *in.wide, *in.scene, part); !r.ok())
                 return Result::fail(Status::kInternal, 0,
                                     "internal error: encoded tree failed verification: " + r.message);
-        }
+            return Result::success();
+        };
+        if (Result r = encode_cwbvh_nodes(*in.wide, out.tree, in.collapse->cost_node, in.collapse->cost_prim);
+            !r.ok())
+            return r;
+        if (Result r = verify(VerifyPart::kBoxes); !r.ok()) return r;
+        if (in.boxes_done) in.boxes_done();
+        if (Result r = encode_cwbvh_triangles(*in.wide, *in.scene, out.tree); !r.ok()) return r;
+        if (Result r = verify(VerifyPart::kRecords); !r.ok()) return r;
         if (bvh2 && !in.binary) {
             return Result::fail(Status::kInternal, 0, "internal error: --keep-sbvh without the binary tree");
         }

@@ -17,11 +17,11 @@ namespace cwbvh::compiler {
 namespace {
 
 /// The exact boxes of a wide node's used slots; returns the used-slot mask.
-uint8_t child_boxes(const WideNode& node, Aabb (&boxes)[kWidth]) {
+uint8_t child_boxes(const WideBvh& wide, const WideNode& node, Aabb (&boxes)[kWidth]) {
     uint8_t used = 0;
     for (int s = 0; s < kWidth; ++s) {
         if (node.slots[s].kind == WideChild::kEmpty) continue;
-        boxes[s] = node.slots[s].box;
+        boxes[s] = wide.box(node.slots[s]);
         used = uint8_t(used | (1u << s));
     }
     return used;
@@ -32,9 +32,17 @@ Result check_wide(const WideBvh& wide) {
     if (wide.nodes.size() >= size_t(kInvalidIndex) || wide.leaf_refs.size() >= size_t(kInvalidIndex)) {
         return Result::fail(Status::kInvalidArgument, 0, "encode: wide BVH too large for 32-bit indices");
     }
+    if (!wide.binary) return Result::fail(Status::kInvalidArgument, 0, "encode: wide BVH without its binary tree (boxes)");
+    const size_t boxes = wide.binary->nodes.size();
     std::vector<uint8_t> parents(wide.nodes.size(), 0);
     for (size_t i = 0; i < wide.nodes.size(); ++i) {
         const WideNode& node = wide.nodes[i];
+        bool box_ok = node.bnode < boxes;
+        for (const WideChild& ch : node.slots) box_ok = box_ok && (ch.kind == WideChild::kEmpty || ch.bnode < boxes);
+        if (!box_ok) {
+            return Result::fail(Status::kInvalidArgument, 0,
+                                "encode: wide node " + std::to_string(i) + " has a bad binary node (box) index");
+        }
         if (node.child_count() == 0) {
             return Result::fail(Status::kInvalidArgument, 0,
                                 "encode: wide node " + std::to_string(i) + " has no children");
@@ -112,8 +120,29 @@ Result claim_leaf_refs(const WideBvh& wide, const Scene& scene, const WideNode& 
 
 }  // namespace
 
-Result encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, float c_node,
-                  float c_prim) {
+namespace {
+
+/// first_leaf_error: the leaf checks again, serially in visit order over the
+/// first `limit` visited nodes, so that the first failure reports (as the
+/// serial encoder did); success if none fails there.
+Result first_leaf_error(const WideBvh& wide, const Scene& scene, EncodedTree& out, size_t limit) {
+    std::vector<uint32_t>(wide.leaf_refs.size(), kInvalidIndex).swap(out.ref_to_tri);
+    std::vector<uint32_t> order{0};
+    uint32_t record = 0;
+    for (size_t v = 0; v < limit && !order.empty(); ++v) {
+        const WideNode& node = wide.nodes[order.back()];
+        order.pop_back();
+        if (Result r = claim_leaf_refs(wide, scene, node, record, out.ref_to_tri); !r.ok()) return r;
+        for (const WideChild& ch : node.slots) record += ch.kind == WideChild::kLeaf ? ch.ref_count : 0;
+        for (int s = kWidth; s-- > 0;)
+            if (node.slots[s].kind == WideChild::kInternal) order.push_back(node.slots[s].node);
+    }
+    return Result::success();
+}
+
+/// Layout and quantization; `quantize_bad` gets the lowest NODE index whose
+/// quantization failed (out.nodes.size() if none).
+Result encode_nodes(const WideBvh& wide, EncodedTree& out, float c_node, float c_prim, size_t& quantize_bad) {
     out = EncodedTree{};
     if (Result r = check_wide(wide); !r.ok()) return r;
     out.nodes.reserve(wide.nodes.size());
@@ -132,7 +161,6 @@ Result encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, f
     out.node_to_wide.push_back(0);
     uint64_t children = 0;
     uint64_t records = 0;
-    size_t visited = 0;
     bool too_many = false;
     while (!stack.empty()) {
         const Work w = stack.back();
@@ -174,77 +202,90 @@ Result encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, f
             records += ch.ref_count;
             out.max_leaf_triangles = ch.ref_count > out.max_leaf_triangles ? ch.ref_count : out.max_leaf_triangles;
         }
-        if (too_many) break;
-        ++visited;
+        if (too_many) {
+            return Result::fail(Status::kInvalidArgument, 0, "encode: too many triangle records for 32-bit indices");
+        }
         out.nodes[w.out] = cn;  // layout only: the boxes are quantized below
         for (int k = kid_count; k-- > 0;) stack.push_back(kids[k]);  // slot order: lowest slot next
     }
 
-    // A leaf error: the checks again, serially in visit order over the first
-    // `limit` visited nodes, so that the first failure reports (as the serial
-    // encoder did); success if none fails there.
-    auto first_leaf_error = [&](size_t limit) -> Result {
-        std::vector<uint32_t>(wide.leaf_refs.size(), kInvalidIndex).swap(out.ref_to_tri);
-        std::vector<uint32_t> order{0};
-        uint32_t record = 0;
-        for (size_t v = 0; v < limit && !order.empty(); ++v) {
-            const WideNode& node = wide.nodes[order.back()];
-            order.pop_back();
-            if (Result r = claim_leaf_refs(wide, scene, node, record, out.ref_to_tri); !r.ok()) return r;
-            for (const WideChild& ch : node.slots) record += ch.kind == WideChild::kLeaf ? ch.ref_count : 0;
-            for (int s = kWidth; s-- > 0;)
-                if (node.slots[s].kind == WideChild::kInternal) order.push_back(node.slots[s].node);
-        }
-        return Result::success();
-    };
-    if (too_many) {
-        if (Result r = first_leaf_error(visited); !r.ok()) return r;
-        return Result::fail(Status::kInvalidArgument, 0, "encode: too many triangle records for 32-bit indices");
-    }
-
-    // In parallel, per node: its leaves' triangle records (with their checks)
-    // and the quantization (a node's exponents and child boxes depend on its
-    // own children's exact boxes only). Failures are named afterwards in the
-    // serial encoder's order: leaf errors (first in visit order), a reference
-    // in no leaf, then the lowest failing node's quantization.
-    out.ref_to_tri.assign(wide.leaf_refs.size(), kInvalidIndex);
-    out.triangles.resize(size_t(records));
-    std::atomic<bool> leaf_bad{false};
+    out.records = records;
+    out.avg_children = double(children) / double(out.nodes.size());
+    // Quantization, in parallel: each node's exponents and child boxes depend
+    // on its own children's exact boxes only. The lowest failing node reports.
     std::atomic<size_t> first_bad{out.nodes.size()};
     tbb::parallel_for(tbb::blocked_range<size_t>(0, out.nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
-            const WideNode& node = wide.nodes[out.node_to_wide[i]];
-            CwbvhNode& cn = out.nodes[i];
-            if (!claim_leaf_refs(wide, scene, node, cn.tri_base, out.ref_to_tri).ok()) {
-                leaf_bad.store(true, std::memory_order_relaxed);
-            } else {
-                uint32_t record = cn.tri_base;
-                for (int s = 0; s < kWidth; ++s) {
-                    const WideChild& ch = node.slots[s];
-                    if (ch.kind != WideChild::kLeaf) continue;
-                    for (uint32_t k = 0; k < ch.ref_count; ++k, ++record) {
-                        const uint32_t prim = wide.leaf_refs[ch.first_ref + k];
-                        const auto& idx = scene.indices[prim];
-                        TriangleRecord& t = out.triangles[record];
-                        for (int a = 0; a < 3; ++a) {
-                            t.v0[a] = scene.vertices[idx[0]][a];
-                            t.v1[a] = scene.vertices[idx[1]][a];
-                            t.v2[a] = scene.vertices[idx[2]][a];
-                        }
-                        t.prim = prim;
-                    }
-                }
-            }
             Aabb boxes[kWidth];
-            const uint8_t used = child_boxes(node, boxes);
-            if (!quantize_node(boxes, used, cn).ok()) {
+            const uint8_t used = child_boxes(wide, wide.nodes[out.node_to_wide[i]], boxes);
+            if (!quantize_node(boxes, used, out.nodes[i]).ok()) {
                 size_t seen = first_bad.load();
                 while (i < seen && !first_bad.compare_exchange_weak(seen, i)) {}
             }
         }
     });
+    quantize_bad = first_bad.load();
+    out.sah_wide = sah_cost_wide(wide, c_node, c_prim);
+    return Result::success();
+}
+
+Result quantize_error(const WideBvh& wide, const EncodedTree& out, size_t bad) {
+    Aabb boxes[kWidth];
+    const uint8_t used = child_boxes(wide, wide.nodes[out.node_to_wide[bad]], boxes);
+    CwbvhNode scratch = out.nodes[bad];
+    Result r = quantize_node(boxes, used, scratch);  // again, for its message
+    if (r.ok()) r = Result::fail(Status::kInternal, 0, "encode: quantization failed");
+    r.message += " (wide node " + std::to_string(out.node_to_wide[bad]) + ")";
+    return r;
+}
+
+}  // namespace
+
+Result encode_cwbvh_nodes(const WideBvh& wide, EncodedTree& out, float c_node, float c_prim) {
+    size_t bad = 0;
+    if (Result r = encode_nodes(wide, out, c_node, c_prim, bad); !r.ok()) return r;
+    if (bad < out.nodes.size()) return quantize_error(wide, out, bad);
+    return Result::success();
+}
+
+Result encode_cwbvh_triangles(const WideBvh& wide, const Scene& scene, EncodedTree& out) {
+    if (out.nodes.size() != wide.nodes.size() || out.node_to_wide.size() != wide.nodes.size()) {
+        return Result::fail(Status::kInvalidArgument, 0, "encode: triangles before the nodes are laid out");
+    }
+    // In parallel, per node: its leaves' triangle records with their checks
+    // (reference claims are atomic). A leaf error reruns the checks serially
+    // in visit order (the first failure reports), then a reference in no leaf.
+    out.ref_to_tri.assign(wide.leaf_refs.size(), kInvalidIndex);
+    out.triangles.resize(size_t(out.records));
+    std::atomic<bool> leaf_bad{false};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, out.nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            const WideNode& node = wide.nodes[out.node_to_wide[i]];
+            const CwbvhNode& cn = out.nodes[i];
+            if (!claim_leaf_refs(wide, scene, node, cn.tri_base, out.ref_to_tri).ok()) {
+                leaf_bad.store(true, std::memory_order_relaxed);
+                continue;
+            }
+            uint32_t record = cn.tri_base;
+            for (int s = 0; s < kWidth; ++s) {
+                const WideChild& ch = node.slots[s];
+                if (ch.kind != WideChild::kLeaf) continue;
+                for (uint32_t k = 0; k < ch.ref_count; ++k, ++record) {
+                    const uint32_t prim = wide.leaf_refs[ch.first_ref + k];
+                    const auto& idx = scene.indices[prim];
+                    TriangleRecord& t = out.triangles[record];
+                    for (int a = 0; a < 3; ++a) {
+                        t.v0[a] = scene.vertices[idx[0]][a];
+                        t.v1[a] = scene.vertices[idx[1]][a];
+                        t.v2[a] = scene.vertices[idx[2]][a];
+                    }
+                    t.prim = prim;
+                }
+            }
+        }
+    });
     if (leaf_bad.load()) {
-        Result r = first_leaf_error(out.nodes.size());
+        Result r = first_leaf_error(wide, scene, out, out.nodes.size());
         if (r.ok()) r = Result::fail(Status::kInternal, 0, "encode: parallel and serial leaf checks disagree");
         return r;
     }
@@ -262,17 +303,15 @@ Result encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, f
         return Result::fail(Status::kInvalidArgument, 0,
                             "encode: leaf reference " + std::to_string(m) + " is in no leaf");
     }
-    if (const size_t bad = first_bad.load(); bad < out.nodes.size()) {
-        Aabb boxes[kWidth];
-        const uint8_t used = child_boxes(wide.nodes[out.node_to_wide[bad]], boxes);
-        CwbvhNode scratch = out.nodes[bad];
-        Result r = quantize_node(boxes, used, scratch);  // again, for its message
-        if (r.ok()) r = Result::fail(Status::kInternal, 0, "encode: quantization failed");
-        r.message += " (wide node " + std::to_string(out.node_to_wide[bad]) + ")";
-        return r;
-    }
-    out.avg_children = double(children) / double(out.nodes.size());
-    out.sah_wide = sah_cost_wide(wide, c_node, c_prim);
+    return Result::success();
+}
+
+Result encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, float c_node, float c_prim) {
+    // The serial encoder's order of failures: layout, leaves, quantization.
+    size_t bad = 0;
+    if (Result r = encode_nodes(wide, out, c_node, c_prim, bad); !r.ok()) return r;
+    if (Result r = encode_cwbvh_triangles(wide, scene, out); !r.ok()) return r;
+    if (bad < out.nodes.size()) return quantize_error(wide, out, bad);
     return Result::success();
 }
 

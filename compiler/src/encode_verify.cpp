@@ -19,15 +19,18 @@ Result fail(const std::string& what, size_t node) {
 }
 
 /// The serial check: a walk from the root, the first failure it meets reports.
-Result verify_encoded_serial(const EncodedTree& tree, const WideBvh& wide, const Scene& scene) {
+Result verify_encoded_serial(const EncodedTree& tree, const WideBvh& wide, const Scene& scene, VerifyPart part) {
+    const bool boxes = part != VerifyPart::kRecords, records = part != VerifyPart::kBoxes;
     const size_t n = tree.nodes.size();
     if (n == 0 || tree.node_to_wide.size() != n || n != wide.nodes.size()) {
         return Result::fail(Status::kInternal, 0, "verify: node count mismatch");
     }
-    if (tree.triangles.size() != wide.leaf_refs.size() || tree.ref_to_tri.size() != wide.leaf_refs.size()) {
+    if (records &&
+        (tree.triangles.size() != wide.leaf_refs.size() || tree.ref_to_tri.size() != wide.leaf_refs.size())) {
         return Result::fail(Status::kInternal, 0, "verify: triangle record count mismatch");
     }
-    std::vector<uint8_t> node_seen(n, 0), tri_seen(tree.triangles.size(), 0), prim_seen(scene.triangle_count(), 0);
+    std::vector<uint8_t> node_seen(n, 0), tri_seen(records ? tree.triangles.size() : 0, 0),
+        prim_seen(records ? scene.triangle_count() : 0, 0);
     std::vector<uint32_t> stack{0};
     node_seen[0] = 1;
     while (!stack.empty()) {
@@ -49,7 +52,7 @@ Result verify_encoded_serial(const EncodedTree& tree, const WideBvh& wide, const
             const Aabb dec = decode_child_box(cn, s);
             for (int a = 0; a < 3; ++a) {
                 if (cn.q_lo[a][s] > cn.q_hi[a][s]) return fail("inverted quantized box", i);
-                if (!(dec.lo[a] <= ch.box.lo[a]) || !(dec.hi[a] >= ch.box.hi[a]))
+                if (boxes && (!(dec.lo[a] <= wide.box(ch).lo[a]) || !(dec.hi[a] >= wide.box(ch).hi[a])))
                     return fail("slot " + std::to_string(s) + ": decoded box does not contain the child", i);
             }
             if (ch.kind == WideChild::kInternal) {
@@ -65,6 +68,7 @@ Result verify_encoded_serial(const EncodedTree& tree, const WideBvh& wide, const
             if (bit || !meta_is_leaf(m) || meta_leaf_count(m) != int(ch.ref_count))
                 return fail("bad leaf meta/imask in slot " + std::to_string(s), i);
             const uint32_t off = uint32_t(meta_leaf_offset(m));
+            if (!records) continue;
             if (off + ch.ref_count > uint32_t(kMaxNodeTriangles) ||
                 uint64_t(cn.tri_base) + off + ch.ref_count > tree.triangles.size())
                 return fail("leaf triangles out of range", i);
@@ -110,12 +114,15 @@ Result verify_encoded_serial(const EncodedTree& tree, const WideBvh& wide, const
 /// again). That passes exactly when the walk does: every node but the root
 /// reached once from a smaller index means every node is on the walk.
 /// On any failure the serial walk runs to name the same first failure.
-Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene& scene) {
+Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene& scene, VerifyPart part) {
+    const bool boxes = part != VerifyPart::kRecords, records = part != VerifyPart::kBoxes;
     const size_t n = tree.nodes.size();
     if (n == 0 || tree.node_to_wide.size() != n || n != wide.nodes.size() ||
-        tree.triangles.size() != wide.leaf_refs.size() || tree.ref_to_tri.size() != wide.leaf_refs.size())
-        return verify_encoded_serial(tree, wide, scene);
-    std::vector<uint8_t> node_seen(n, 0), tri_seen(tree.triangles.size(), 0), prim_seen(scene.triangle_count(), 0);
+        (records &&
+         (tree.triangles.size() != wide.leaf_refs.size() || tree.ref_to_tri.size() != wide.leaf_refs.size())))
+        return verify_encoded_serial(tree, wide, scene, part);
+    std::vector<uint8_t> node_seen(n, 0), tri_seen(records ? tree.triangles.size() : 0, 0),
+        prim_seen(records ? scene.triangle_count() : 0, 0);
     auto mark = [](uint8_t& m) {
         std::atomic_ref<uint8_t> a(m);
         if (a.fetch_or(1, std::memory_order_relaxed) & 1) a.fetch_or(2, std::memory_order_relaxed);
@@ -139,9 +146,11 @@ Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene&
                     ok = m == kMetaEmpty && !bit;
                     continue;
                 }
-                const Aabb dec = decode_child_box(cn, s);
-                for (int a = 0; a < 3; ++a) {
-                    ok = ok && cn.q_lo[a][s] <= cn.q_hi[a][s] && dec.lo[a] <= ch.box.lo[a] && dec.hi[a] >= ch.box.hi[a];
+                for (int a = 0; a < 3; ++a) ok = ok && cn.q_lo[a][s] <= cn.q_hi[a][s];
+                if (boxes && ok) {
+                    const Aabb dec = decode_child_box(cn, s);
+                    const Aabb& box = wide.box(ch);
+                    for (int a = 0; a < 3; ++a) ok = ok && dec.lo[a] <= box.lo[a] && dec.hi[a] >= box.hi[a];
                 }
                 if (!ok) break;
                 if (ch.kind == WideChild::kInternal) {
@@ -152,6 +161,7 @@ Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene&
                     continue;
                 }
                 ok = !bit && meta_is_leaf(m) && meta_leaf_count(m) == int(ch.ref_count);
+                if (!records) continue;
                 const uint32_t off = uint32_t(meta_leaf_offset(m));
                 ok = ok && off + ch.ref_count <= uint32_t(kMaxNodeTriangles) &&
                      uint64_t(cn.tri_base) + off + ch.ref_count <= tree.triangles.size();
@@ -190,7 +200,7 @@ Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene&
     all_once(tri_seen, 0);
     all_once(prim_seen, 0);
     if (!bad.load()) return Result::success();
-    Result r = verify_encoded_serial(tree, wide, scene);
+    Result r = verify_encoded_serial(tree, wide, scene, part);
     if (r.ok()) r = Result::fail(Status::kInternal, 0, "verify: parallel and serial checks disagree");
     return r;
 }

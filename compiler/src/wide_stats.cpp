@@ -12,7 +12,7 @@ namespace cwbvh::compiler {
 
 double sah_cost_wide(const WideBvh& wide, float c_node, float c_prim) {
     if (wide.nodes.empty()) return 0.0;
-    const double root_area = wide.nodes[0].box.half_area();
+    const double root_area = wide.box(wide.nodes[0]).half_area();
     const double scale = root_area > 0.0 ? 1.0 / root_area : 1.0;
     // Sum in node order (deterministic); every node and leaf is a slot of
     // exactly one parent except the root. The terms of a block of nodes are
@@ -29,10 +29,10 @@ double sah_cost_wide(const WideBvh& wide, float c_node, float c_prim) {
             for (size_t k = r.begin(); k != r.end(); ++k) {
                 const WideNode& node = wide.nodes[base + k];
                 double* t = &terms[k * kTerms];
-                t[0] = double(c_node) * node.box.half_area() * scale;
+                t[0] = double(c_node) * wide.box(node).half_area() * scale;
                 for (int s = 0; s < kWidth; ++s) {
                     const WideChild& ch = node.slots[s];
-                    t[1 + s] = ch.kind == WideChild::kLeaf ? double(c_prim) * ch.ref_count * ch.box.half_area() * scale
+                    t[1 + s] = ch.kind == WideChild::kLeaf ? double(c_prim) * ch.ref_count * wide.box(ch).half_area() * scale
                                                            : 0.0;
                 }
             }

@@ -88,21 +88,27 @@ TEST(Auction, CornerChildrenGoToTheirOctantSlots) {
     // (-,-,-) has the smallest dot with d_0 = (+1,+1,+1) and goes to slot 0;
     // the corner with x high is traversed first by rays with x < 0 (bit 2).
     WideBvh wide;
+    BinaryBvh boxes;
+    wide.binary = &boxes;
     wide.nodes.resize(1);
     WideNode& n = wide.nodes[0];
-    n.box.lo = {0, 0, 0};
-    n.box.hi = {2, 2, 2};
+    Aabb parent;
+    parent.lo = {0, 0, 0};
+    parent.hi = {2, 2, 2};
+    n.bnode = wide_test::add_box(boxes, parent);
     for (int c = 0; c < 8; ++c) {
         const int corner = 7 - c;  // fill in reverse to force a permutation
         WideChild& ch = n.slots[c];
         ch.kind = WideChild::kLeaf;
         ch.ref_count = 1;
         ch.first_ref = uint32_t(corner);  // remember which corner
+        Aabb box;
         for (int a = 0; a < 3; ++a) {
             const float lo = (corner >> (2 - a) & 1) ? 1.0f : 0.0f;
-            ch.box.lo[a] = lo;
-            ch.box.hi[a] = lo + 1.0f;
+            box.lo[a] = lo;
+            box.hi[a] = lo + 1.0f;
         }
+        ch.bnode = wide_test::add_box(boxes, box);
     }
     assign_slots(wide);
     for (int s = 0; s < 8; ++s) EXPECT_EQ(n.slots[s].first_ref, uint32_t(s));
@@ -120,14 +126,14 @@ TEST(Auction, AssignSlotsKeepsChildrenAndIsDeterministic) {
     double before = 0, after = 0;
     for (size_t i = 0; i < wide.nodes.size(); ++i) {
         EXPECT_EQ(a.nodes[i].child_count(), wide.nodes[i].child_count());
-        const auto ct = slot_cost_table(wide.nodes[i]);
+        const auto ct = slot_cost_table(wide, wide.nodes[i]);
         for (int s = 0; s < 8; ++s) {
             EXPECT_EQ(a.nodes[i].slots[s].kind, b.nodes[i].slots[s].kind);
             EXPECT_EQ(a.nodes[i].slots[s].node, b.nodes[i].slots[s].node);
             EXPECT_EQ(a.nodes[i].slots[s].first_ref, b.nodes[i].slots[s].first_ref);
             before += ct[s][s];
         }
-        const auto ca = slot_cost_table(a.nodes[i]);
+        const auto ca = slot_cost_table(a, a.nodes[i]);
         for (int s = 0; s < 8; ++s) after += ca[s][s];
     }
     EXPECT_LE(after, before);

@@ -46,22 +46,26 @@ TEST(Encode, MetaImaskAndBases) {
     WideBvh wide;
     wide.nodes.resize(3);
     wide.leaf_refs = {0, 1, 2, 3, 4, 5, 6};
-    auto leaf = [&](uint32_t first, uint32_t count) { return wide_test::leaf_of(scene, first, count); };
+    BinaryBvh boxes;
+    wide.binary = &boxes;
+    auto leaf = [&](uint32_t first, uint32_t count) { return wide_test::leaf_of(scene, boxes, first, count); };
     wide.nodes[1].slots[0] = leaf(5, 1);
-    wide.nodes[1].box = wide.nodes[1].slots[0].box;
+    wide.nodes[1].bnode = wide.nodes[1].slots[0].bnode;
     wide.nodes[2].slots[7] = leaf(6, 1);
-    wide.nodes[2].box = wide.nodes[2].slots[7].box;
+    wide.nodes[2].bnode = wide.nodes[2].slots[7].bnode;
     WideNode& root = wide.nodes[0];
     root.slots[1].kind = WideChild::kInternal;
     root.slots[1].node = 2;
-    root.slots[1].box = wide.nodes[2].box;
+    root.slots[1].bnode = wide.nodes[2].bnode;
     root.slots[3] = leaf(0, 2);
     root.slots[4].kind = WideChild::kInternal;
     root.slots[4].node = 1;
-    root.slots[4].box = wide.nodes[1].box;
+    root.slots[4].bnode = wide.nodes[1].bnode;
     root.slots[6] = leaf(2, 3);
+    compiler::Aabb root_box;
     for (const WideChild& c : root.slots)
-        if (c.kind != WideChild::kEmpty) root.box.grow(c.box);
+        if (c.kind != WideChild::kEmpty) root_box.grow(wide.box(c));
+    root.bnode = wide_test::add_box(boxes, root_box);
     EncodedTree tree;
     std::string error;
     ASSERT_TRUE(::cwbvh::test::ok(encode_cwbvh(wide, scene, tree), error)) << error;
@@ -142,7 +146,7 @@ void expect_bvh2_is_cut_at_wide_leaves(const Scene& scene, const Pipeline& p) {
     std::map<uint32_t, WideLeaf> wide_leaves;
     for (const WideNode& n : p.wide.nodes)
         for (const WideChild& c : n.slots)
-            if (c.kind == WideChild::kLeaf) wide_leaves[p.tree.ref_to_tri[c.first_ref]] = {c.ref_count, c.box};
+            if (c.kind == WideChild::kLeaf) wide_leaves[p.tree.ref_to_tri[c.first_ref]] = {c.ref_count, p.wide.box(c)};
     size_t binary_internal = 0;
     for (const auto& n : p.binary.nodes) binary_internal += !n.is_leaf();
     EXPECT_LE(b.size(), std::max<size_t>(binary_internal, 1));  // 1: a single-leaf tree

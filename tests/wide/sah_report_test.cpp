@@ -28,29 +28,33 @@ TEST(SahReport, HandComputedOnGridAlignedBoxes) {
     WideBvh wide;
     wide.leaf_refs = {0, 1, 2};
     wide.nodes.resize(2);
-    wide.nodes[1].slots[0] = wide_test::leaf_of(scene, 1, 1);
-    wide.nodes[1].slots[1] = wide_test::leaf_of(scene, 2, 1);
-    wide.nodes[1].box = wide.nodes[1].slots[0].box;
-    wide.nodes[1].box.grow(wide.nodes[1].slots[1].box);
-    wide.nodes[0].slots[0] = wide_test::leaf_of(scene, 0, 1);
+    BinaryBvh boxes;
+    wide.binary = &boxes;
+    wide.nodes[1].slots[0] = wide_test::leaf_of(scene, boxes, 1, 1);
+    wide.nodes[1].slots[1] = wide_test::leaf_of(scene, boxes, 2, 1);
+    Aabb box1 = wide.box(wide.nodes[1].slots[0]);
+    box1.grow(wide.box(wide.nodes[1].slots[1]));
+    wide.nodes[1].bnode = wide_test::add_box(boxes, box1);
+    wide.nodes[0].slots[0] = wide_test::leaf_of(scene, boxes, 0, 1);
     wide.nodes[0].slots[1].kind = WideChild::kInternal;
     wide.nodes[0].slots[1].node = 1;
-    wide.nodes[0].slots[1].box = wide.nodes[1].box;
-    wide.nodes[0].box = wide.nodes[0].slots[0].box;
-    wide.nodes[0].box.grow(wide.nodes[1].box);
+    wide.nodes[0].slots[1].bnode = wide.nodes[1].bnode;
+    Aabb box0 = wide.box(wide.nodes[0].slots[0]);
+    box0.grow(box1);
+    wide.nodes[0].bnode = wide_test::add_box(boxes, box0);
     EncodedTree tree;
     std::string error;
     ASSERT_TRUE(::cwbvh::test::ok(encode_cwbvh(wide, scene, tree), error)) << error;
     const double root = 3.0 * 255 * 255;  // half area of [0,255]^3
-    const WideSahParts parts = report_sah_wide_parts(tree.nodes, wide.nodes[0].box);
+    const WideSahParts parts = report_sah_wide_parts(tree.nodes, wide.box(wide.nodes[0]));
     EXPECT_DOUBLE_EQ(parts.internal, 1.0 + 3.0 * 110 * 110 / root);
     EXPECT_DOUBLE_EQ(parts.leaf, 1.0 + 2 * 300.0 / root);
     EXPECT_DOUBLE_EQ(parts.total, parts.internal + parts.leaf);
-    EXPECT_EQ(report_sah_wide(tree.nodes, wide.nodes[0].box), parts.total);
+    EXPECT_EQ(report_sah_wide(tree.nodes, wide.box(wide.nodes[0])), parts.total);
     // Exact boxes give the same figures here (nothing is inflated).
     EXPECT_DOUBLE_EQ(sah_cost_wide(wide, 1, 0), parts.internal);
     EXPECT_DOUBLE_EQ(sah_cost_wide(wide, 0, 1), parts.leaf);
-    EXPECT_EQ(report_sah_wide_parts({}, wide.nodes[0].box).total, 0.0);
+    EXPECT_EQ(report_sah_wide_parts({}, wide.box(wide.nodes[0])).total, 0.0);
 }
 
 TEST(SahReport, DecodedTermsBoundTheExactOnes) {
@@ -68,7 +72,7 @@ TEST(SahReport, DecodedTermsBoundTheExactOnes) {
                 ASSERT_TRUE(::cwbvh::test::ok(collapse_wide(binary, cfg, wide), error)) << error;
                 assign_slots(wide);
                 ASSERT_TRUE(::cwbvh::test::ok(encode_cwbvh(wide, scene, tree), error)) << error;
-                const Aabb& root = wide.nodes[0].box;
+                const Aabb& root = wide.box(wide.nodes[0]);
                 const WideSahParts parts = report_sah_wide_parts(tree.nodes, root);
                 EXPECT_EQ(report_sah_wide(tree.nodes, root), parts.total);
                 EXPECT_NEAR(parts.total, parts.internal + parts.leaf, 1e-12 * parts.total);

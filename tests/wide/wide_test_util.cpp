@@ -10,13 +10,22 @@
 
 namespace cwbvh::wide_test {
 
-compiler::WideChild leaf_of(const Scene& scene, uint32_t first, uint32_t count) {
+uint32_t add_box(BinaryBvh& boxes, const Aabb& box) {
+    compiler::BinaryNode n;
+    n.box = box;
+    boxes.nodes.push_back(n);
+    return uint32_t(boxes.nodes.size() - 1);
+}
+
+compiler::WideChild leaf_of(const Scene& scene, BinaryBvh& boxes, uint32_t first, uint32_t count) {
     compiler::WideChild c;
     c.kind = compiler::WideChild::kLeaf;
     c.first_ref = first;
-    c.ref_count = count;
+    c.ref_count = uint8_t(count);
+    Aabb box;
     for (uint32_t k = 0; k < count; ++k)
-        for (const auto& v : scene.triangle(first + k)) c.box.grow(v);
+        for (const auto& v : scene.triangle(first + k)) box.grow(v);
+    c.bnode = add_box(boxes, box);
     return c;
 }
 

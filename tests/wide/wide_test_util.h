@@ -32,9 +32,14 @@ BinaryBvh build_binary(const Scene& scene, SplitMode mode = SplitMode::kMedian, 
 /// and negative indices accepted). Returns false if the file cannot be read.
 bool read_obj(const std::string& path, Scene& scene);
 
+/// Box store for hand-built wide trees (WideBvh::binary = &boxes): appends a
+/// binary node holding `box` and returns its index (a bnode).
+uint32_t add_box(BinaryBvh& boxes, const Aabb& box);
+
 /// A wide leaf over leaf_refs[first, first + count) whose stored triangle ids
-/// are first.. (the tests' leaf_refs are the identity), box = their union.
-compiler::WideChild leaf_of(const Scene& scene, uint32_t first, uint32_t count);
+/// are first.. (the tests' leaf_refs are the identity), box = their union
+/// (appended to `boxes`).
+compiler::WideChild leaf_of(const Scene& scene, BinaryBvh& boxes, uint32_t first, uint32_t count);
 
 /// Brute force: enumerates every valid collapse of a (tiny) binary tree —
 /// every labelling of binary nodes as wide internal node / wide leaf /

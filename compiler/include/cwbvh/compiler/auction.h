@@ -28,9 +28,9 @@ void assign_slots(WideBvh& wide, Progress* progress = nullptr);
 /// optimal (Bertsekas 1992, prop. 1). object_of[i] = object of person i.
 void auction_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::array<int, 8>& object_of);
 
-/// The slot cost table of one wide node: cost[i][s] for child slot i
+/// The slot cost table of one wide node of `wide`: cost[i][s] for child slot i
 /// (empty slots: 0 for every s).
-std::array<std::array<double, 8>, 8> slot_cost_table(const WideNode& node);
+std::array<std::array<double, 8>, 8> slot_cost_table(const WideBvh& wide, const WideNode& node);
 
 /// Minimum-cost assignment for a real cost table: costs are mapped to integers
 /// (scaled so that max |cost| -> 2^30, rounded to nearest) and solved exactly

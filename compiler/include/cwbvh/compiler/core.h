@@ -37,8 +37,9 @@ struct CoreOptions {
 using PhaseRunner = std::function<bool(const std::string& name, uint64_t units, const std::function<bool()>& body)>;
 
 /// binary tree -> encoded sections: collapse, slots, encode (and verify). The
-/// binary tree's nodes are released as soon as nothing needs them (after the
-/// slots, unless a BVH2/BV2L section is written). `out.build_info` holds the
+/// binary tree's nodes are released as soon as nothing needs them (once the
+/// wide nodes are quantized and their boxes verified, unless a BVH2/BV2L
+/// section is written). `out.build_info` holds the
 /// BILD figures (sah_binary included). `progress` (optional) is advanced by the
 /// collapse and the slots as in compile.h; it never changes the output.
 Result compile_binary(const Scene& scene, BinaryBvh& binary, const CoreOptions& options, EmitResult& out,

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -38,6 +39,11 @@ struct EmitInput {
     uint64_t references = 0;             ///< binary leaves (BILD)
     uint64_t binary_nodes = 0;           ///< binary nodes (BILD)
     const WideBvh* wide = nullptr;       ///< null only for a scene without triangles
+    /// Called once the wide tree's exact boxes (its binary tree) are no longer
+    /// read: after the nodes are quantized and their boxes verified, before
+    /// the triangle records are allocated (optional; the core frees the
+    /// binary tree there unless a BVH2/BV2L section needs it).
+    std::function<void()> boxes_done;
     const CollapseConfig* collapse = nullptr;
     const SbvhConfig* sbvh = nullptr;
     double sah_binary = 0;

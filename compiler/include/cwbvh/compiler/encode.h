@@ -22,6 +22,7 @@ struct EncodedTree {
     double avg_children = 0;
     uint32_t max_leaf_triangles = 0;
     double sah_wide = 0;                    ///< sah_cost_wide(wide, c_node, c_prim)
+    uint64_t records = 0;                   ///< TRIS records laid out (triangles.size() once filled)
 };
 
 /// Layout (deterministic): depth first with contiguous sibling blocks. When a
@@ -35,6 +36,14 @@ struct EncodedTree {
 /// c_node/c_prim only feed EncodedTree::sah_wide.
 Result encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out,
                                 float c_node = 1.0f, float c_prim = 0.3f);
+
+/// encode_cwbvh in two steps, so that the binary tree (the exact boxes) can be
+/// freed before the triangle records are allocated: the nodes (layout,
+/// quantization, avg_children, sah_wide: reads the boxes), then the TRIS
+/// records and ref_to_tri (reads no box). A tree failing in both steps
+/// reports the node step's failure (encode_cwbvh: the leaves' first).
+Result encode_cwbvh_nodes(const WideBvh& wide, EncodedTree& out, float c_node = 1.0f, float c_prim = 0.3f);
+Result encode_cwbvh_triangles(const WideBvh& wide, const Scene& scene, EncodedTree& out);
 
 /// BV2L section (binary BVH with leaf ranges, spec 3.6): Aila–Laine 64-byte nodes
 /// over the binary BVH cut at the wide tree's leaves. Every wide leaf is one
@@ -58,6 +67,11 @@ Result encode_bvh2(const BinaryBvh& binary, const WideBvh& wide, const EncodedTr
 /// consistent and in range, every node is reached exactly once from the root,
 /// every TRIS record is referenced exactly once and matches the scene, and
 /// every stored triangle of the scene appears in at least one leaf.
-Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene& scene);
+/// `part` checks one side only (the node structure is checked by both): kBoxes
+/// the containment (needs the boxes, not the records), kRecords the TRIS
+/// records and coverage (needs no box).
+enum class VerifyPart { kAll, kBoxes, kRecords };
+Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene& scene,
+                      VerifyPart part = VerifyPart::kAll);
 
 }  // namespace cwbvh::compiler

@@ -101,18 +101,22 @@ struct CollapseConfig {
 /// Produced by collapse_wide(), slots permuted by assign_slots(); the final
 /// NODE/TRIS order is chosen by encode_cwbvh(), so the order of
 /// WideBvh::nodes and WideBvh::leaf_refs is only required to be deterministic.
+/// Exact boxes are not copied: every node and child names the binary node it
+/// was collapsed from, whose box is its exact bounds (WideBvh::box), so the
+/// binary tree must outlive every use of the boxes (the collapse, the slots,
+/// the quantization, sah_cost_wide and the box part of verify_encoded).
 struct WideChild {
     enum Kind : uint8_t { kEmpty, kInternal, kLeaf } kind = kEmpty;
     uint8_t ref_count = 0;           ///< kLeaf: 1..3 (after de-duplication)
-    Aabb box;                        ///< exact (unquantized) bounds: the collapsed binary node's box
     union {                          // one index per kind (GCC/Clang: either name reads the same bits)
         uint32_t node = kInvalidIndex;  ///< kInternal: index into WideBvh::nodes
         uint32_t first_ref;             ///< kLeaf: first index into WideBvh::leaf_refs
     };
+    uint32_t bnode = kInvalidIndex;  ///< the collapsed binary node (its box: the exact, unquantized bounds)
 };
-static_assert(sizeof(WideChild) == 32, "WideChild: 32 bytes (eight per WideNode)");
+static_assert(sizeof(WideChild) == 12, "WideChild: 12 bytes (eight per WideNode)");
 struct WideNode {
-    Aabb box;                        ///< exact bounds (the binary node this wide node came from)
+    uint32_t bnode = kInvalidIndex;  ///< the binary node this wide node came from (its box: the exact bounds)
     std::array<WideChild, 8> slots;
     int child_count() const {
         int c = 0;
@@ -131,6 +135,12 @@ struct WideBvh {
     /// same triangle in the same wide leaf share one entry. Used for BVH2; empty
     /// when CollapseConfig::binary_leaf_refs is false.
     std::vector<uint32_t> binary_leaf_ref;
+    /// The tree the bnode indices name (set by collapse_wide; not owned).
+    const BinaryBvh* binary = nullptr;
+
+    /// Exact bounds of a child / a node (the binary tree must still be alive).
+    const Aabb& box(const WideChild& c) const { return binary->nodes[c.bnode].box; }
+    const Aabb& box(const WideNode& n) const { return binary->nodes[n.bnode].box; }
 };
 
 }  // namespace cwbvh::compiler
