@@ -27,7 +27,8 @@ uint8_t child_boxes(const WideBvh& wide, const WideNode& node, Aabb (&boxes)[kWi
     return used;
 }
 
-Result check_wide(const WideBvh& wide) {
+/// The serial check (the first failing node in index order reports).
+Result check_wide_serial(const WideBvh& wide) {
     if (wide.nodes.empty()) return Result::fail(Status::kInvalidArgument, 0, "encode: wide BVH has no nodes");
     if (wide.nodes.size() >= size_t(kInvalidIndex) || wide.leaf_refs.size() >= size_t(kInvalidIndex)) {
         return Result::fail(Status::kInvalidArgument, 0, "encode: wide BVH too large for 32-bit indices");
@@ -77,6 +78,60 @@ Result check_wide(const WideBvh& wide) {
         }
     }
     return Result::success();
+}
+
+/// check_wide_serial's conditions in parallel (parent marks: bit 0 once,
+/// bit 1 again); any failure reruns the serial check to name it.
+Result check_wide(const WideBvh& wide) {
+    if (wide.nodes.empty() || wide.nodes.size() >= size_t(kInvalidIndex) ||
+        wide.leaf_refs.size() >= size_t(kInvalidIndex) || !wide.binary)
+        return check_wide_serial(wide);
+    const size_t n = wide.nodes.size(), boxes = wide.binary->nodes.size();
+    std::vector<uint8_t> parents(n, 0);
+    std::atomic<bool> bad{false};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+            const WideNode& node = wide.nodes[i];
+            bool ok = node.bnode < boxes && node.child_count() != 0;
+            uint32_t triangles = 0;
+            for (const WideChild& ch : node.slots) {
+                if (ch.kind == WideChild::kEmpty) continue;
+                ok = ok && ch.bnode < boxes;
+                if (ch.kind == WideChild::kInternal) {
+                    if (ch.node == 0 || ch.node >= n) {
+                        ok = false;
+                        continue;
+                    }
+                    std::atomic_ref<uint8_t> mark(parents[ch.node]);
+                    if (mark.fetch_or(1, std::memory_order_relaxed) & 1) mark.fetch_or(2, std::memory_order_relaxed);
+                } else if (ch.kind == WideChild::kLeaf) {
+                    ok = ok && ch.ref_count >= 1 && ch.ref_count <= uint32_t(kMaxLeafTriangles) &&
+                         ch.first_ref <= wide.leaf_refs.size() && ch.ref_count <= wide.leaf_refs.size() - ch.first_ref;
+                    triangles += ch.ref_count;
+                } else {
+                    ok = false;
+                }
+            }
+            if (!ok || triangles > uint32_t(kMaxNodeTriangles)) {
+                bad.store(true, std::memory_order_relaxed);
+                return;
+            }
+        }
+    });
+    if (!bad.load()) {
+        tbb::parallel_for(tbb::blocked_range<size_t>(1, n, 1 << 14), [&](const tbb::blocked_range<size_t>& r) {
+            for (size_t i = r.begin(); i != r.end(); ++i) {
+                if (parents[i] != 1) {
+                    bad.store(true, std::memory_order_relaxed);
+                    return;
+                }
+            }
+        });
+    }
+    if (!bad.load()) return Result::success();
+    Result r = check_wide_serial(wide);
+    if (r.ok()) r = Result::fail(Status::kInternal, 0, "encode: parallel and serial wide checks disagree");
+    return r;
 }
 
 }  // namespace
@@ -249,7 +304,7 @@ Result encode_cwbvh_nodes(const WideBvh& wide, EncodedTree& out, float c_node, f
 }
 
 Result encode_cwbvh_triangles(const WideBvh& wide, const Scene& scene, EncodedTree& out) {
-    if (out.nodes.size() != wide.nodes.size() || out.node_to_wide.size() != wide.nodes.size()) {
+    if (out.nodes.empty() || out.node_to_wide.size() != out.nodes.size()) {
         return Result::fail(Status::kInvalidArgument, 0, "encode: triangles before the nodes are laid out");
     }
     // In parallel, per node: its leaves' triangle records with their checks

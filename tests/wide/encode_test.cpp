@@ -329,6 +329,16 @@ TEST(Encode, ErrorsNameTheSameFailureForAnyThreadCount) {
     leaves[leaves.size() - 1]->first_ref = leaves[leaves.size() / 2]->first_ref;
     leaves[10]->first_ref = leaves[leaves.size() - 7]->first_ref;
     EXPECT_NE(messages(encode_error(shared, scene)).find("used by two leaves"), std::string::npos);
+    // check_wide: internal children shared by two parents.
+    WideBvh twice = p.wide;
+    std::vector<WideChild*> internal;
+    for (WideNode& n : twice.nodes)
+        for (WideChild& c : n.slots)
+            if (c.kind == WideChild::kInternal) internal.push_back(&c);
+    ASSERT_GT(internal.size(), 100u);
+    internal[internal.size() - 2]->node = internal[internal.size() / 3]->node;
+    internal[20]->node = internal[internal.size() - 9]->node;
+    EXPECT_NE(messages(encode_error(twice, scene)).find("bad or shared child index"), std::string::npos);
     // The verifier: wrong vertices in several records.
     EncodedTree bad_tree = p.tree;
     for (size_t t : {bad_tree.triangles.size() - 3, bad_tree.triangles.size() / 3, size_t(5)})
