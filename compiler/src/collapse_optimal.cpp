@@ -14,7 +14,7 @@
 // starts with an internal node) and the tree is rebuilt by backtracking the
 // stored decisions from the root. O(n * 7 * 7) time.
 //
-// Memory: the decisions (9 bytes per binary node) are kept for the
+// Memory: the decisions (4 bytes per binary node) are kept for the
 // backtracking; the costs C(n, .) are only needed until the parent has used
 // them. For a tree in depth-first preorder (what both builders write), the
 // reverse sweep finishes a subtree right before its parent needs it, so the
