@@ -262,7 +262,8 @@ WideChild make_wide_leaf_at(const BinaryBvh& binary, uint32_t node, WideBvh& wid
     return child;
 }
 
-Result add_internal_child(const BinaryBvh& binary, uint32_t binary_node, uint32_t parent, int slot, WideBvh& out,
+Result add_internal_child(const BinaryBvh& /*binary: the slot names its node, no box copied*/, uint32_t binary_node,
+                          uint32_t parent, int slot, WideBvh& out,
                         uint32_t& child) {
     if (out.nodes.size() >= size_t(kInvalidIndex)) {
         return Result::fail(Status::kInvalidArgument, 0, "collapse: too many wide nodes");
