@@ -38,30 +38,37 @@ void auction_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::a
         // One scaling phase: start unassigned, keep the prices.
         for (int j = 0; j < n; ++j) owner[j] = -1;
         for (int i = 0; i < n; ++i) object_of[i] = -1;
-        for (;;) {
-            int i = 0;  // fixed bidding order: the lowest unassigned person
-            while (i < n && object_of[i] >= 0) ++i;
-            if (i == n) break;
+        uint32_t unassigned = (1u << n) - 1;
+        while (unassigned != 0) {
+            const int i = __builtin_ctz(unassigned);  // fixed bidding order: the lowest unassigned person
             // Best object (ties: the lowest) and the best value among the
-            // others, in one pass: a later object equal to the best only
-            // raises the second value, as in two separate passes.
+            // others, without branches (which object wins a bid is data):
+            // the maximum and its lowest index, then the maximum over the
+            // other objects (a second object equal to the best gives v2 = v1,
+            // as the one-pass loop did).
+            int64_t v[n];
+            for (int j = 0; j < n; ++j) v[j] = b[i][j] - price[j];
             int best = 0;
-            int64_t v1 = b[i][0] - price[0];
-            int64_t v2 = INT64_MIN;
+            int64_t v1 = v[0];
             for (int j = 1; j < n; ++j) {
-                const int64_t v = b[i][j] - price[j];
-                if (v > v1) {
-                    v2 = v1;
-                    v1 = v;
-                    best = j;
-                } else if (v > v2) {
-                    v2 = v;
-                }
+                const bool gt = v[j] > v1;
+                v1 = gt ? v[j] : v1;
+                best = gt ? j : best;
+            }
+            int64_t v2 = INT64_MIN;
+            for (int j = 0; j < n; ++j) {
+                const int64_t x = j == best ? INT64_MIN : v[j];
+                v2 = x > v2 ? x : v2;
             }
             price[best] += v1 - v2 + eps;  // bid increment >= eps > 0
-            if (owner[best] >= 0) object_of[owner[best]] = -1;
+            const int previous = owner[best];
+            if (previous >= 0) {
+                object_of[previous] = -1;
+                unassigned |= 1u << previous;
+            }
             owner[best] = i;
             object_of[i] = best;
+            unassigned &= ~(1u << i);
         }
         if (eps == 1) break;
         // Scaling factor 8 (Bertsekas suggests 4-10): ~11 phases over the
