@@ -86,6 +86,9 @@ Result compile_phases(const CompileOptions& options, CompileStats& stats, const 
             return r.ok();
         }))
         return r;
+    // The per-triangle source map becomes PMAP runs now, not at the end: it
+    // would be alive through the SBVH and collapse peaks (16 bytes per triangle).
+    if (r = make_scene_source_ranges(scene, options.verify); !r.ok()) return r;
     stats.input_triangles = scene.input_triangles;
     stats.dropped_triangles = scene.dropped;
     stats.skipped_primitives = scene.skipped_primitives;

@@ -84,6 +84,46 @@ Aabb scene_box(const Scene& scene) {
         });
 }
 
+namespace {
+
+/// PMAP runs of `sources`; with `verify`, each triangle's run decoded back and compared.
+Result source_ranges_of(std::span<const SourceRef> sources, bool verify, std::vector<SourceRange>& ranges) {
+    // clean.cpp keeps stored triangles in source order within a primitive,
+    // so a run breaks only at a dropped triangle or a new primitive/input.
+    ranges = make_source_ranges(sources);
+    if (verify) {
+        if (source_range_total(ranges) != sources.size()) {
+            return Result::fail(Status::kInternal, 0, "internal error: PMAP ranges do not cover the stored triangles");
+        }
+        // In parallel; the lowest wrong triangle reports.
+        std::atomic<size_t> first_wrong{sources.size()};
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, sources.size(), 1 << 14), [&](const tbb::blocked_range<size_t>& b) {
+            for (size_t i = b.begin(); i != b.end(); ++i) {
+                const std::optional<SourceRef> r = find_source(ranges, uint32_t(i));
+                if (!r || std::memcmp(&*r, &sources[i], sizeof(SourceRef)) != 0) {
+                    size_t seen = first_wrong.load();
+                    while (i < seen && !first_wrong.compare_exchange_weak(seen, i)) {}
+                    return;
+                }
+            }
+        });
+        if (const size_t i = first_wrong.load(); i < sources.size()) {
+            return Result::fail(Status::kInternal, 0,
+                                "internal error: PMAP range decodes stored triangle " + std::to_string(i) + " wrongly");
+        }
+    }
+    return Result::success();
+}
+
+}  // namespace
+
+Result make_scene_source_ranges(Scene& scene, bool verify) {
+    if (!scene.source_ranges.empty() || scene.sources.empty()) return Result::success();
+    if (Result r = source_ranges_of(scene.sources, verify, scene.source_ranges); !r.ok()) return r;
+    std::vector<SourceRef>().swap(scene.sources);
+    return Result::success();
+}
+
 Result encode_scene(const EmitInput& in, EmitResult& out) {
     const EmitOptions& options = *in.options;
     const bool bvh2 = options.bvh2 != Bvh2Section::kNone;
@@ -152,30 +192,15 @@ Result encode_scene(const EmitInput& in, EmitResult& out) {
         out.source_names.insert(out.source_names.end(), name.begin(), name.end());
         out.source_names.push_back(0);
     }
-    // PMAP: clean.cpp keeps stored triangles in source order within a
-    // primitive, so a run breaks only at a dropped triangle or a new primitive/input.
-    out.source_ranges = make_source_ranges(in.scene->sources);
-    if (options.verify) {
-        const std::vector<SourceRef>& sources = in.scene->sources;
-        if (source_range_total(out.source_ranges) != sources.size()) {
-            return Result::fail(Status::kInternal, 0, "internal error: PMAP ranges do not cover the stored triangles");
-        }
-        // In parallel; the lowest wrong triangle reports.
-        std::atomic<size_t> first_wrong{sources.size()};
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, sources.size(), 1 << 14), [&](const tbb::blocked_range<size_t>& b) {
-            for (size_t i = b.begin(); i != b.end(); ++i) {
-                const std::optional<SourceRef> r = find_source(out.source_ranges, uint32_t(i));
-                if (!r || std::memcmp(&*r, &sources[i], sizeof(SourceRef)) != 0) {
-                    size_t seen = first_wrong.load();
-                    while (i < seen && !first_wrong.compare_exchange_weak(seen, i)) {}
-                    return;
-                }
-            }
-        });
-        if (const size_t i = first_wrong.load(); i < sources.size()) {
-            return Result::fail(Status::kInternal, 0,
-                                "internal error: PMAP range decodes stored triangle " + std::to_string(i) + " wrongly");
-        }
+    // PMAP: the scene's runs when the front end made them (and freed the
+    // per-triangle map), else made here.
+    if (!in.scene->source_ranges.empty() || in.scene->sources.empty()) {
+        out.source_ranges = in.scene->source_ranges;
+    } else if (Result r = source_ranges_of(in.scene->sources, options.verify, out.source_ranges); !r.ok()) {
+        return r;
+    }
+    if (source_range_total(out.source_ranges) != in.scene->triangle_count()) {
+        return Result::fail(Status::kInternal, 0, "internal error: PMAP ranges do not cover the stored triangles");
     }
     return Result::success();
 }

@@ -69,6 +69,12 @@ struct EmitResult {
 /// the BNDS section and the root area of the SAH report.
 Aabb scene_box(const Scene& scene);
 
+/// Turns scene.sources into scene.source_ranges (the PMAP runs) and frees the
+/// per-triangle map. With `verify`, every triangle's run is decoded back and
+/// compared first (kInternal on a mismatch). A scene whose ranges are made
+/// already is left as it is.
+Result make_scene_source_ranges(Scene& scene, bool verify);
+
 /// Quantizes and lays out the tree (NODE, TRIS, optional BVH2/BV2L), verifies it
 /// when options->verify, and fills the BILD/BNDS/SRCN/PMAP payloads. A scene
 /// without triangles (wide == nullptr) gives the empty scene of spec 3.2: one

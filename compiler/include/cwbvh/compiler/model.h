@@ -45,7 +45,12 @@ struct Aabb {
 struct Scene {
     std::vector<Vec3> vertices;
     std::vector<std::array<uint32_t, 3>> indices;
-    std::vector<SourceRef> sources;        ///< one per triangle
+    std::vector<SourceRef> sources;        ///< one per triangle (empty once turned into source_ranges)
+    /// The PMAP runs of `sources` (make_source_ranges). cwbvhc makes them
+    /// right after the import and frees `sources` (16 bytes per triangle,
+    /// alive through every later peak); empty: the core makes them from
+    /// `sources` when it writes the file.
+    std::vector<SourceRange> source_ranges;
     std::vector<std::string> input_names;  ///< SourceRef::input indexes this
 
     uint64_t input_triangles = 0;          ///< before cleaning
