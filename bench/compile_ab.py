@@ -1,0 +1,86 @@
+#!/usr/bin/env python3
+"""Before/after compile time of two cwbvhc builds next to Embree, in one run (issue 11).
+
+    python3 bench/compile_ab.py --before OLD/bin/cwbvhc --after build/bin/cwbvhc \\
+        [--embree build/bin/cwbvh_bench_embree_build] [--threads 2] [--runs 5] SCENE...
+
+Per scene and round: `before`, `after` (alternating, so that drift of a shared machine hits both)
+and Embree 3 rtcCommitScene at HIGH quality on the same cleaned triangles (the `after` build's
+--keep-mesh output; the timer covers scene + geometry setup + commit). Outputs go to /dev/shm when
+there is one and are removed before each run (overwriting a file on this VM's ext4 added up to
+0.13 s of freeing the old inode to the write phase). Prints per scene the median and range of the
+whole compile (`seconds.total` of --stats-json), the SBVH phase and the peak RSS, the after/before
+and after/HIGH ratios (medians of the same rounds), and the load average before and after.
+"""
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+
+
+def compile_once(binary, scene, out, stats, threads):
+    if os.path.exists(out):
+        os.remove(out)
+    subprocess.run([binary, scene, "-o", out, "--threads", str(threads), "--quiet", "--stats-json", stats],
+                   check=True)
+    with open(stats) as f:
+        s = json.load(f)
+    return s["seconds"]["total"], s["seconds"].get("sbvh", 0.0), s["peak_rss_bytes"] / 2**20
+
+
+def embree_once(embree, mesh, threads):
+    out = subprocess.run([embree, mesh, "--quality", "high", "--threads", str(threads), "--repeats", "1"],
+                         check=True, capture_output=True, text=True).stdout
+    return json.loads(out)["seconds"]
+
+
+def summary(xs):
+    return f"{statistics.median(xs):.3f} ({min(xs):.3f}-{max(xs):.3f})"
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--before", required=True)
+    ap.add_argument("--after", required=True)
+    ap.add_argument("--embree", default=None, help="cwbvh_bench_embree_build (default: next to --after)")
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument("scenes", nargs="+")
+    a = ap.parse_args()
+    embree = a.embree or os.path.join(os.path.dirname(a.after), "cwbvh_bench_embree_build")
+    for tool in (a.before, a.after, embree):
+        if not os.access(tool, os.X_OK):
+            sys.exit(f"compile_ab: {tool} is not an executable")
+    shm = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
+    print(f"threads {a.threads}, {a.runs} rounds, load average {os.getloadavg()[0]:.2f}")
+    with tempfile.TemporaryDirectory(dir=shm) as tmp:
+        out, stats, mesh = (os.path.join(tmp, n) for n in ("out.cwbvh", "stats.json", "mesh.cwbvh"))
+        for scene in a.scenes:
+            subprocess.run([a.after, scene, "-o", mesh, "--threads", str(a.threads), "--quiet", "--keep-mesh"],
+                           check=True)
+            rows = {"before": [], "after": [], "high": []}
+            for _ in range(a.runs):
+                rows["before"].append(compile_once(a.before, scene, out, stats, a.threads))
+                rows["after"].append(compile_once(a.after, scene, out, stats, a.threads))
+                rows["high"].append(embree_once(embree, mesh, a.threads))
+            tb = [r[0] for r in rows["before"]]
+            ta = [r[0] for r in rows["after"]]
+            th = rows["high"]
+            print(f"{os.path.basename(scene)}:")
+            for k, t in (("before", tb), ("after", ta)):
+                sb = [r[1] for r in rows[k]]
+                pk = [r[2] for r in rows[k]]
+                print(f"  {k:6s} total {summary(t)} s, sbvh {summary(sb)} s, peak {statistics.median(pk):.1f} MiB")
+            print(f"  Embree HIGH {summary(th)} s")
+            print(f"  after/before {statistics.median(ta) / statistics.median(tb):.3f}, "
+                  f"after/HIGH {statistics.median(ta) / statistics.median(th):.2f} "
+                  f"(per round {min(x / y for x, y in zip(ta, th)):.2f}-{max(x / y for x, y in zip(ta, th)):.2f}), "
+                  f"before/HIGH {statistics.median(tb) / statistics.median(th):.2f}")
+    print(f"load average at the end {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
