@@ -11,6 +11,8 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "cwbvh/compiler/parallel_check.h"
+
 namespace cwbvh::compiler {
 namespace detail {
 
@@ -126,22 +128,12 @@ Result check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count) {
                     local_bad = true;
                     continue;
                 }
-                std::atomic_ref<uint8_t> mark(parents[ch]);
-                if (mark.fetch_or(1, std::memory_order_relaxed) & 1) mark.fetch_or(2, std::memory_order_relaxed);
+                mark_parent(parents[ch]);
             }
         }
         if (local_bad) bad.store(true, std::memory_order_relaxed);
     });
-    if (!bad.load()) {
-        tbb::parallel_for(tbb::blocked_range<size_t>(1, n, kCheckGrain), [&](const tbb::blocked_range<size_t>& r) {
-            for (size_t i = r.begin(); i != r.end(); ++i) {
-                if (parents[i] != 1) {
-                    bad.store(true, std::memory_order_relaxed);
-                    return;
-                }
-            }
-        });
-    }
+    if (!bad.load() && lowest_failing(n, kCheckGrain, [&](size_t i) { return i > 0 && parents[i] != 1; }) < n) bad = true;
     std::vector<uint8_t>().swap(parents);
     if (bad.load()) {
         Result r = check_structure_serial(binary);
@@ -227,21 +219,9 @@ uint32_t distinct_leaf_triangles(const BinaryBvh& binary, uint32_t node) {
 }
 
 WideChild make_wide_leaf(const BinaryBvh& binary, uint32_t node, WideBvh& wide) {
-    WideChild child;
-    child.kind = WideChild::kLeaf;
-    child.bnode = node;
-    child.first_ref = uint32_t(wide.leaf_refs.size());
-    for_each_leaf(binary, node, [&](uint32_t leaf) {
-        const uint32_t p = binary.nodes[leaf].prim();
-        // Spatial splits can put two references of one triangle in the same
-        // leaf: store it once (the DP's leaf cost counts distinct triangles).
-        uint32_t k = child.first_ref;
-        while (k < wide.leaf_refs.size() && wide.leaf_refs[k] != p) ++k;
-        if (k == wide.leaf_refs.size()) wide.leaf_refs.push_back(p);
-        if (!wide.binary_leaf_ref.empty()) wide.binary_leaf_ref[leaf] = k;
-    });
-    child.ref_count = uint8_t(wide.leaf_refs.size() - child.first_ref);  // <= max_leaf <= 3
-    return child;
+    uint32_t cursor = uint32_t(wide.leaf_refs.size());
+    wide.leaf_refs.resize(size_t(cursor) + distinct_leaf_triangles(binary, node));
+    return make_wide_leaf_at(binary, node, wide, cursor);
 }
 
 WideChild make_wide_leaf_at(const BinaryBvh& binary, uint32_t node, WideBvh& wide, uint32_t& cursor) {
@@ -262,20 +242,22 @@ WideChild make_wide_leaf_at(const BinaryBvh& binary, uint32_t node, WideBvh& wid
     return child;
 }
 
-Result add_internal_child(const BinaryBvh& /*binary: the slot names its node, no box copied*/, uint32_t binary_node,
-                          uint32_t parent, int slot, WideBvh& out,
-                        uint32_t& child) {
+Result add_internal_child(uint32_t binary_node, uint32_t parent, int slot, WideBvh& out, uint32_t& child) {
     if (out.nodes.size() >= size_t(kInvalidIndex)) {
         return Result::fail(Status::kInvalidArgument, 0, "collapse: too many wide nodes");
     }
     child = uint32_t(out.nodes.size());
     out.nodes.emplace_back();
+    link_internal_child(binary_node, parent, slot, child, out);
+    return Result::success();
+}
+
+void link_internal_child(uint32_t binary_node, uint32_t parent, int slot, uint32_t child, WideBvh& out) {
     out.nodes[child].bnode = binary_node;
     WideChild& s = out.nodes[parent].slots[size_t(slot)];
     s.kind = WideChild::kInternal;
     s.bnode = binary_node;
     s.node = child;
-    return Result::success();
 }
 
 }  // namespace detail

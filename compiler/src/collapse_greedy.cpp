@@ -65,7 +65,7 @@ Result collapse_greedy(const BinaryBvh& binary, const CollapseConfig& config,
                 continue;
             }
             uint32_t child = 0;
-            if (Result r = add_internal_child(binary, m, w.wide, c, out, child); !r.ok()) return r;
+            if (Result r = add_internal_child(m, w.wide, c, out, child); !r.ok()) return r;
             work.push_back({m, child});
         }
     }

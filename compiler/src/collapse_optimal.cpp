@@ -272,7 +272,7 @@ Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config, s
     // breadth first until there are enough independent wide subtrees (the
     // frontier); each frontier subtree is counted (wide nodes, leaf_refs
     // entries) in parallel, the arrays are allocated once at their exact
-    // sizes (WideNode is 312 bytes: no regrowth), and every subtree is built
+    // sizes (no regrowth: old and new arrays alive together), and every subtree is built
     // in parallel into its own ranges (offsets by prefix sums in frontier
     // order), so the result does not depend on the schedule.
     out.nodes.emplace_back();
@@ -338,13 +338,6 @@ Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config, s
 
     // Top nodes: wide node t is top[t]; breadth first, so the internal
     // children met in order are top[1], top[2], ... then the frontier roots.
-    auto set_internal = [&](uint32_t parent, int slot, uint32_t m, uint32_t child) {
-        out.nodes[child].bnode = m;
-        WideChild& s = out.nodes[parent].slots[size_t(slot)];
-        s.kind = WideChild::kInternal;
-        s.bnode = m;
-        s.node = child;
-    };
     {
         uint32_t ref_cursor = 0;
         size_t next = 1;
@@ -358,7 +351,7 @@ Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config, s
                 }
                 const size_t k = next++;
                 const uint64_t child = k < top.size() ? k : span[k - top.size()].nodes;
-                set_internal(uint32_t(t), c, m, uint32_t(child));
+                link_internal_child(m, uint32_t(t), c, uint32_t(child), out);
             }
         }
         assert(next == top.size() + frontier.size());
@@ -385,7 +378,7 @@ Result collapse_optimal(const BinaryBvh& binary, const CollapseConfig& config, s
                     triangles += out.nodes[w.wide].slots[c].ref_count;
                 } else {
                     const uint32_t child = node_cursor++;
-                    set_internal(w.wide, c, m, child);
+                    link_internal_child(m, w.wide, c, child, out);
                     work.push_back({m, child});
                 }
             }

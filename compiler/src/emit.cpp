@@ -9,17 +9,16 @@
 #include "cwbvh/compiler/emit.h"
 
 #include <array>
-#include <atomic>
 #include <cstring>
 #include <optional>
 #include <span>
 
 #include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
 #include "cwbvh/compiler/build.h"
 #include "cwbvh/compiler/collapse.h"
+#include "cwbvh/compiler/parallel_check.h"
 #include "cwbvh/compiler/sah_report.h"
 #include "cwbvh/format/sections.h"
 #include "cwbvh/format/source_map.h"
@@ -96,18 +95,11 @@ Result source_ranges_of(std::span<const SourceRef> sources, bool verify, std::ve
             return Result::fail(Status::kInternal, 0, "internal error: PMAP ranges do not cover the stored triangles");
         }
         // In parallel; the lowest wrong triangle reports.
-        std::atomic<size_t> first_wrong{sources.size()};
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, sources.size(), 1 << 14), [&](const tbb::blocked_range<size_t>& b) {
-            for (size_t i = b.begin(); i != b.end(); ++i) {
-                const std::optional<SourceRef> r = find_source(ranges, uint32_t(i));
-                if (!r || std::memcmp(&*r, &sources[i], sizeof(SourceRef)) != 0) {
-                    size_t seen = first_wrong.load();
-                    while (i < seen && !first_wrong.compare_exchange_weak(seen, i)) {}
-                    return;
-                }
-            }
+        const size_t i = lowest_failing(sources.size(), 1 << 14, [&](size_t k) {
+            const std::optional<SourceRef> r = find_source(ranges, uint32_t(k));
+            return !r || std::memcmp(&*r, &sources[k], sizeof(SourceRef)) != 0;
         });
-        if (const size_t i = first_wrong.load(); i < sources.size()) {
+        if (i < sources.size()) {
             return Result::fail(Status::kInternal, 0,
                                 "internal error: PMAP range decodes stored triangle " + std::to_string(i) + " wrongly");
         }

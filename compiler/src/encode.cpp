@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 
 #include "cwbvh/compiler/collapse.h"
+#include "cwbvh/compiler/parallel_check.h"
 #include "cwbvh/compiler/quantize.h"
 #include "cwbvh/format/node_decode.h"
 
@@ -102,8 +103,7 @@ Result check_wide(const WideBvh& wide) {
                         ok = false;
                         continue;
                     }
-                    std::atomic_ref<uint8_t> mark(parents[ch.node]);
-                    if (mark.fetch_or(1, std::memory_order_relaxed) & 1) mark.fetch_or(2, std::memory_order_relaxed);
+                    mark_parent(parents[ch.node]);
                 } else if (ch.kind == WideChild::kLeaf) {
                     ok = ok && ch.ref_count >= 1 && ch.ref_count <= uint32_t(kMaxLeafTriangles) &&
                          ch.first_ref <= wide.leaf_refs.size() && ch.ref_count <= wide.leaf_refs.size() - ch.first_ref;
@@ -118,25 +118,12 @@ Result check_wide(const WideBvh& wide) {
             }
         }
     });
-    if (!bad.load()) {
-        tbb::parallel_for(tbb::blocked_range<size_t>(1, n, 1 << 14), [&](const tbb::blocked_range<size_t>& r) {
-            for (size_t i = r.begin(); i != r.end(); ++i) {
-                if (parents[i] != 1) {
-                    bad.store(true, std::memory_order_relaxed);
-                    return;
-                }
-            }
-        });
-    }
+    if (!bad.load() && lowest_failing(n, 1 << 14, [&](size_t i) { return i > 0 && parents[i] != 1; }) < n) bad = true;
     if (!bad.load()) return Result::success();
     Result r = check_wide_serial(wide);
     if (r.ok()) r = Result::fail(Status::kInternal, 0, "encode: parallel and serial wide checks disagree");
     return r;
 }
-
-}  // namespace
-
-namespace {
 
 /// The checks of one wide node's leaf references, in the serial encoder's
 /// order (slot order, then reference order), claiming ref_to_tri[ref] for
@@ -173,18 +160,13 @@ Result claim_leaf_refs(const WideBvh& wide, const Scene& scene, const WideNode& 
     return Result::success();
 }
 
-}  // namespace
-
-namespace {
-
-/// first_leaf_error: the leaf checks again, serially in visit order over the
-/// first `limit` visited nodes, so that the first failure reports (as the
-/// serial encoder did); success if none fails there.
-Result first_leaf_error(const WideBvh& wide, const Scene& scene, EncodedTree& out, size_t limit) {
+/// The leaf checks again, serially in visit order, so that the first failure
+/// reports (as the serial encoder did); success if none fails.
+Result first_leaf_error(const WideBvh& wide, const Scene& scene, EncodedTree& out) {
     std::vector<uint32_t>(wide.leaf_refs.size(), kInvalidIndex).swap(out.ref_to_tri);
     std::vector<uint32_t> order{0};
     uint32_t record = 0;
-    for (size_t v = 0; v < limit && !order.empty(); ++v) {
+    while (!order.empty()) {
         const WideNode& node = wide.nodes[order.back()];
         order.pop_back();
         if (Result r = claim_leaf_refs(wide, scene, node, record, out.ref_to_tri); !r.ok()) return r;
@@ -268,18 +250,11 @@ Result encode_nodes(const WideBvh& wide, EncodedTree& out, float c_node, float c
     out.avg_children = double(children) / double(out.nodes.size());
     // Quantization, in parallel: each node's exponents and child boxes depend
     // on its own children's exact boxes only. The lowest failing node reports.
-    std::atomic<size_t> first_bad{out.nodes.size()};
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, out.nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-            Aabb boxes[kWidth];
-            const uint8_t used = child_boxes(wide, wide.nodes[out.node_to_wide[i]], boxes);
-            if (!quantize_node(boxes, used, out.nodes[i]).ok()) {
-                size_t seen = first_bad.load();
-                while (i < seen && !first_bad.compare_exchange_weak(seen, i)) {}
-            }
-        }
+    quantize_bad = lowest_failing(out.nodes.size(), 1024, [&](size_t i) {
+        Aabb boxes[kWidth];
+        const uint8_t used = child_boxes(wide, wide.nodes[out.node_to_wide[i]], boxes);
+        return !quantize_node(boxes, used, out.nodes[i]).ok();
     });
-    quantize_bad = first_bad.load();
     out.sah_wide = sah_cost_wide(wide, c_node, c_prim);
     return Result::success();
 }
@@ -340,21 +315,13 @@ Result encode_cwbvh_triangles(const WideBvh& wide, const Scene& scene, EncodedTr
         }
     });
     if (leaf_bad.load()) {
-        Result r = first_leaf_error(wide, scene, out, out.nodes.size());
+        Result r = first_leaf_error(wide, scene, out);
         if (r.ok()) r = Result::fail(Status::kInternal, 0, "encode: parallel and serial leaf checks disagree");
         return r;
     }
-    std::atomic<size_t> first_missing{out.ref_to_tri.size()};
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, out.ref_to_tri.size(), 1 << 14),
-                      [&](const tbb::blocked_range<size_t>& r) {
-                          for (size_t k = r.begin(); k != r.end(); ++k) {
-                              if (out.ref_to_tri[k] != kInvalidIndex) continue;
-                              size_t seen = first_missing.load();
-                              while (k < seen && !first_missing.compare_exchange_weak(seen, k)) {}
-                              return;
-                          }
-                      });
-    if (const size_t m = first_missing.load(); m < out.ref_to_tri.size()) {
+    if (const size_t m = lowest_failing(out.ref_to_tri.size(), 1 << 14,
+                                        [&](size_t k) { return out.ref_to_tri[k] == kInvalidIndex; });
+        m < out.ref_to_tri.size()) {
         return Result::fail(Status::kInvalidArgument, 0,
                             "encode: leaf reference " + std::to_string(m) + " is in no leaf");
     }

@@ -47,7 +47,8 @@ namespace detail {
 Result check_binary(const BinaryBvh& binary, std::vector<uint32_t>& ref_count);
 
 /// Appends a wide leaf made of the binary leaves under `node` (left first,
-/// duplicates removed) to wide.leaf_refs and fills binary_leaf_ref.
+/// duplicates removed) to wide.leaf_refs and fills binary_leaf_ref
+/// (make_wide_leaf_at after growing leaf_refs).
 WideChild make_wide_leaf(const BinaryBvh& binary, uint32_t node, WideBvh& wide);
 
 /// make_wide_leaf into wide.leaf_refs[cursor...] (already sized: as many
@@ -71,8 +72,11 @@ bool preorder_cut(const BinaryBvh& binary, size_t max_nodes, std::vector<uint32_
 /// Appends a wide node for binary node `binary_node` and makes it the internal
 /// child in slot `slot` of wide node `parent`; `child` gets its index.
 /// False (error set) when the wide node count would overflow 32 bits.
-Result add_internal_child(const BinaryBvh& binary, uint32_t binary_node, uint32_t parent, int slot,
-                                      WideBvh& out, uint32_t& child);
+Result add_internal_child(uint32_t binary_node, uint32_t parent, int slot, WideBvh& out, uint32_t& child);
+
+/// Makes existing wide node `child` (made from binary node `binary_node`) the
+/// internal child in slot `slot` of wide node `parent`.
+void link_internal_child(uint32_t binary_node, uint32_t parent, int slot, uint32_t child, WideBvh& out);
 
 /// Number of distinct triangles among the binary leaves under `node`
 /// (which must hold at most `limit` references; the answer is then <= limit).
