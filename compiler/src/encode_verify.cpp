@@ -7,6 +7,7 @@
 #include <tbb/parallel_for.h>
 
 #include "cwbvh/compiler/encode.h"
+#include "cwbvh/compiler/parallel_check.h"
 #include "cwbvh/compiler/quantize.h"
 #include "cwbvh/format/node_decode.h"
 
@@ -123,10 +124,6 @@ Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene&
         return verify_encoded_serial(tree, wide, scene, part);
     std::vector<uint8_t> node_seen(n, 0), tri_seen(records ? tree.triangles.size() : 0, 0),
         prim_seen(records ? scene.triangle_count() : 0, 0);
-    auto mark = [](uint8_t& m) {
-        std::atomic_ref<uint8_t> a(m);
-        if (a.fetch_or(1, std::memory_order_relaxed) & 1) a.fetch_or(2, std::memory_order_relaxed);
-    };
     std::atomic<bool> bad{false};
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 512), [&](const tbb::blocked_range<size_t>& range) {
         for (size_t i = range.begin(); i != range.end(); ++i) {
@@ -157,7 +154,7 @@ Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene&
                     const uint32_t c = internal_child_index(cn, s);
                     ok = m == make_meta_internal(s) && bit && meta_is_internal(m) && c < n && c > i &&
                          tree.node_to_wide[c] == ch.node;
-                    if (ok) mark(node_seen[c]);
+                    if (ok) mark_parent(node_seen[c]);
                     continue;
                 }
                 ok = !bit && meta_is_leaf(m) && meta_leaf_count(m) == int(ch.ref_count);
@@ -169,7 +166,7 @@ Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene&
                     const uint32_t t = cn.tri_base + off + k;
                     const uint32_t ref = ch.first_ref + k;
                     const TriangleRecord& rec = tree.triangles[t];
-                    mark(tri_seen[t]);
+                    mark_parent(tri_seen[t]);
                     ok = tree.ref_to_tri[ref] == t && rec.prim == wide.leaf_refs[ref] && rec.prim < scene.triangle_count();
                     if (!ok) break;
                     const auto v = scene.triangle(rec.prim);
@@ -186,14 +183,8 @@ Result verify_encoded(const EncodedTree& tree, const WideBvh& wide, const Scene&
     });
     auto all_once = [&](const std::vector<uint8_t>& seen, size_t from) {
         if (bad.load()) return;
-        tbb::parallel_for(tbb::blocked_range<size_t>(from, seen.size(), 1 << 14), [&](const tbb::blocked_range<size_t>& r) {
-            for (size_t k = r.begin(); k != r.end(); ++k) {
-                if (seen[k] != 1) {
-                    bad.store(true, std::memory_order_relaxed);
-                    return;
-                }
-            }
-        });
+        if (lowest_failing(seen.size(), 1 << 14, [&](size_t k) { return k >= from && seen[k] != 1; }) < seen.size())
+            bad.store(true);
     };
     if (!bad.load() && node_seen[0] != 0) bad.store(true);
     all_once(node_seen, 1);
