@@ -69,7 +69,10 @@ BuildInfo build_info(const EmitInput& in, const EmitResult& out) {
 }  // namespace
 
 Aabb scene_box(const Scene& scene) {
-    // Min/max are exact: any partition gives the same box.
+    // Min/max are exact: any partition gives the same box. The join grows by
+    // the right part's corners (ties take the later value, as the serial
+    // loop's grow did, so even signed zeros match) and skips an empty part,
+    // whose +inf/-inf corners would make the box infinite.
     return tbb::parallel_reduce(
         tbb::blocked_range<size_t>(0, scene.indices.size(), 1 << 14), Aabb{},
         [&](const tbb::blocked_range<size_t>& r, Aabb box) {
@@ -78,7 +81,7 @@ Aabb scene_box(const Scene& scene) {
             return box;
         },
         [](Aabb a, const Aabb& b) {
-            a.grow(b);
+            if (!b.empty()) a.grow(b);
             return a;
         });
 }
