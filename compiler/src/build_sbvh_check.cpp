@@ -7,10 +7,8 @@
 #include <string>
 #include <vector>
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include "cwbvh/compiler/build.h"
+#include "cwbvh/compiler/parallel_exact.h"
 
 namespace cwbvh::compiler {
 
@@ -18,23 +16,12 @@ double sah_cost_binary(const BinaryBvh& bvh, float c_node, float c_prim) {
     if (bvh.nodes.empty()) return 0.0;
     const double root = bvh.nodes[0].box.half_area();  // ratios: half areas suffice
     if (!(root > 0.0)) return 0.0;
-    // Summed in node order (fixed), so the value is reproducible: the terms
-    // of a block of nodes in parallel, then added in order (the same
-    // additions as one serial loop, so the same bits for any thread count).
-    constexpr size_t kBlock = size_t(1) << 18;
-    const size_t n = bvh.nodes.size();
-    std::vector<double> terms(std::min(n, kBlock));
-    double sum = 0.0;
-    for (size_t base = 0; base < n; base += kBlock) {
-        const size_t count = std::min(kBlock, n - base);
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 4096), [&](const tbb::blocked_range<size_t>& r) {
-            for (size_t k = r.begin(); k != r.end(); ++k) {
-                const BinaryNode& node = bvh.nodes[base + k];
-                terms[k] = (node.is_leaf() ? double(c_prim) : double(c_node)) * node.box.half_area() / root;
-            }
-        });
-        for (size_t k = 0; k < count; ++k) sum += terms[k];
-    }
+    // Summed in node order (fixed), so the value is reproducible for any
+    // thread count (terms in parallel, added in order: ordered_sum).
+    const double sum = ordered_sum(bvh.nodes.size(), 1, [&](size_t i, double* t) {
+        const BinaryNode& node = bvh.nodes[i];
+        t[0] = (node.is_leaf() ? double(c_prim) : double(c_node)) * node.box.half_area() / root;
+    });
     return sum;
 }
 

@@ -11,7 +11,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include "cwbvh/compiler/parallel_check.h"
+#include "cwbvh/compiler/parallel_exact.h"
 
 namespace cwbvh::compiler {
 namespace detail {

@@ -18,7 +18,7 @@
 
 #include "cwbvh/compiler/build.h"
 #include "cwbvh/compiler/collapse.h"
-#include "cwbvh/compiler/parallel_check.h"
+#include "cwbvh/compiler/parallel_exact.h"
 #include "cwbvh/compiler/sah_report.h"
 #include "cwbvh/format/sections.h"
 #include "cwbvh/format/source_map.h"

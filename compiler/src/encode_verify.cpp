@@ -7,7 +7,7 @@
 #include <tbb/parallel_for.h>
 
 #include "cwbvh/compiler/encode.h"
-#include "cwbvh/compiler/parallel_check.h"
+#include "cwbvh/compiler/parallel_exact.h"
 #include "cwbvh/compiler/quantize.h"
 #include "cwbvh/format/node_decode.h"
 
