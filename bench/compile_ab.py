@@ -20,6 +20,8 @@ import subprocess
 import sys
 import tempfile
 
+from compile_scaling import output_dir, run_json
+
 
 def compile_once(binary, scene, out, stats, threads):
     if os.path.exists(out):
@@ -32,9 +34,7 @@ def compile_once(binary, scene, out, stats, threads):
 
 
 def embree_once(embree, mesh, threads):
-    out = subprocess.run([embree, mesh, "--quality", "high", "--threads", str(threads), "--repeats", "1"],
-                         check=True, capture_output=True, text=True).stdout
-    return json.loads(out)["seconds"]
+    return run_json([embree, mesh, "--quality", "high", "--threads", str(threads), "--repeats", "1"])["seconds"]
 
 
 def summary(xs):
@@ -54,9 +54,8 @@ def main():
     for tool in (a.before, a.after, embree):
         if not os.access(tool, os.X_OK):
             sys.exit(f"compile_ab: {tool} is not an executable")
-    shm = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
     print(f"threads {a.threads}, {a.runs} rounds, load average {os.getloadavg()[0]:.2f}")
-    with tempfile.TemporaryDirectory(dir=shm) as tmp:
+    with tempfile.TemporaryDirectory(dir=output_dir()) as tmp:
         out, stats, mesh = (os.path.join(tmp, n) for n in ("out.cwbvh", "stats.json", "mesh.cwbvh"))
         for scene in a.scenes:
             subprocess.run([a.after, scene, "-o", mesh, "--threads", str(a.threads), "--quiet", "--keep-mesh"],

@@ -37,6 +37,11 @@ def run_json(cmd):
     return json.loads(out)
 
 
+def output_dir():
+    """Where compiled outputs go: /dev/shm when there is one (see main)."""
+    return "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
+
+
 def default_scenes():
     shared = os.path.join(ROOT, "..", "shared", "scenes")
     scenes = []
@@ -80,8 +85,7 @@ def main():
     # this VM's ext4 (mounted with discard) writing over an existing 44 MB file
     # added 0.02-0.13 s of freeing the old inode to the write phase, noise
     # that says nothing about the compiler (Embree's timer writes no file).
-    shm = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
-    with tempfile.TemporaryDirectory(dir=shm) as tmp:
+    with tempfile.TemporaryDirectory(dir=output_dir()) as tmp:
         out_file = os.path.join(tmp, "scene.cwbvh")
         mesh_file = os.path.join(tmp, "mesh.cwbvh")
         stats_file = os.path.join(tmp, "stats.json")
