@@ -46,19 +46,21 @@ void auction_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::a
             // the maximum and its lowest index, then the maximum over the
             // other objects (a second object equal to the best gives v2 = v1,
             // as the one-pass loop did).
-            int64_t v[n];
-            for (int j = 0; j < n; ++j) v[j] = b[i][j] - price[j];
+            // Best object (ties: the lowest), its value v1 and the best value
+            // among the other objects v2 (a second object equal to the best
+            // gives v2 = v1), in one pass without branches (which object wins
+            // a bid is data): v2 is the running second largest value.
+            const int64_t* bi = b[i];
             int best = 0;
-            int64_t v1 = v[0];
-            for (int j = 1; j < n; ++j) {
-                const bool gt = v[j] > v1;
-                v1 = gt ? v[j] : v1;
-                best = gt ? j : best;
-            }
+            int64_t v1 = bi[0] - price[0];
             int64_t v2 = INT64_MIN;
-            for (int j = 0; j < n; ++j) {
-                const int64_t x = j == best ? INT64_MIN : v[j];
-                v2 = x > v2 ? x : v2;
+            for (int j = 1; j < n; ++j) {
+                const int64_t x = bi[j] - price[j];
+                const int64_t lower = x < v1 ? x : v1;
+                v2 = lower > v2 ? lower : v2;
+                const bool gt = x > v1;
+                v1 = gt ? x : v1;
+                best = gt ? j : best;
             }
             price[best] += v1 - v2 + eps;  // bid increment >= eps > 0
             const int previous = owner[best];
@@ -76,6 +78,84 @@ void auction_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::a
         // dragon took 0.29 s with 4.
         eps = eps / 8 > 1 ? eps / 8 : 1;
     }
+}
+
+bool unique_max_benefit(const std::array<std::array<int64_t, 8>, 8>& benefit, std::array<int, 8>& object_of) {
+    constexpr int n = 8;
+    constexpr int64_t kInf = INT64_MAX / 4;  // |benefit| <= 2^40: potentials and path lengths stay below 2^45
+    // Persons and objects are numbered 1..n; object 0 is the search's start.
+    int64_t u[n + 1] = {}, v[n + 1] = {};
+    int person_of[n + 1] = {}, way[n + 1] = {};
+    for (int i = 1; i <= n; ++i) {
+        person_of[0] = i;
+        int j0 = 0;
+        int64_t minv[n + 1];
+        bool used[n + 1] = {};
+        for (int j = 0; j <= n; ++j) minv[j] = kInf;
+        do {
+            used[j0] = true;
+            const int i0 = person_of[j0];
+            const int64_t* b = benefit[i0 - 1].data();
+            const int64_t ui0 = u[i0];
+            int64_t delta = kInf;
+            int j1 = 0;
+            // Without branches (which object improves is data): a used
+            // object neither improves nor wins (its values read as kInf).
+            for (int j = 1; j <= n; ++j) {
+                const int64_t cur = used[j] ? kInf : -b[j - 1] - ui0 - v[j];
+                const bool better = cur < minv[j];
+                minv[j] = better ? cur : minv[j];
+                way[j] = better ? j0 : way[j];
+                const int64_t m = used[j] ? kInf : minv[j];
+                const bool wins = m < delta;
+                delta = wins ? m : delta;
+                j1 = wins ? j : j1;
+            }
+            for (int j = 0; j <= n; ++j) {
+                const int64_t d = used[j] ? delta : 0;
+                u[person_of[j]] += d;  // person_of[j] of an unused j is never read as a row
+                v[j] -= d;
+                minv[j] -= used[j] ? 0 : delta;
+            }
+            j0 = j1;
+        } while (person_of[j0] != 0);
+        do {  // augment along the path
+            const int j1 = way[j0];
+            person_of[j0] = person_of[j1];
+            j0 = j1;
+        } while (j0 != 0);
+    }
+    for (int j = 1; j <= n; ++j) object_of[person_of[j] - 1] = j - 1;
+    // next[i]: the persons whose objects person i reaches on a tight edge.
+    uint32_t reach[n];
+    for (int i = 0; i < n; ++i) {
+        uint32_t m = 0;
+        for (int j = 1; j <= n; ++j) {
+            const int other = person_of[j] - 1;
+            const bool tight = -benefit[i][j - 1] - u[i + 1] - v[j] == 0;
+            m |= uint32_t(tight && other != i) << other;
+        }
+        reach[i] = m;
+    }
+    for (int k = 0; k < n; ++k)  // transitive closure (Warshall on bit rows)
+        for (int i = 0; i < n; ++i)
+            if (reach[i] >> k & 1) reach[i] |= reach[k];
+    for (int i = 0; i < n; ++i)
+        if (reach[i] >> i & 1) return false;  // a cycle: another optimum
+    return true;
+}
+
+void slot_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::array<int, 8>& object_of) {
+    // Two rows of zeros (empty child slots) can always swap objects: the
+    // optimum is not unique, the auction decides.
+    int zero_rows = 0;
+    for (const auto& row : benefit) {
+        bool zero = true;
+        for (int64_t x : row) zero &= x == 0;
+        zero_rows += zero;
+    }
+    if (zero_rows < 2 && unique_max_benefit(benefit, object_of)) return;
+    auction_assign(benefit, object_of);
 }
 
 std::array<std::array<double, 8>, 8> slot_cost_table(const WideBvh& wide, const WideNode& node) {
@@ -101,12 +181,12 @@ std::array<std::array<double, 8>, 8> slot_cost_table(const WideBvh& wide, const 
 
 namespace {
 /// std::llround without the library call: nearest integer, halves away from
-/// zero (|x| <= 2^30 here). x - trunc(x) is exact for such x, so the result is
+/// zero (|x| <= 2^30 here). x - trunc(x) is exact for such x (and int64_t(x) is trunc(x)), so the result is
 /// llround's bit for bit.
 inline int64_t round_half_away(double x) {
-    const double t = std::trunc(x);
-    const double f = x - t;
-    return int64_t(t) + (f >= 0.5 ? 1 : (f <= -0.5 ? -1 : 0));
+    const int64_t t = int64_t(x);  // truncation toward zero, exact for |x| <= 2^30
+    const double f = x - double(t);
+    return t + int64_t(f >= 0.5) - int64_t(f <= -0.5);  // without branches: the sign is data
 }
 }  // namespace
 
@@ -120,7 +200,7 @@ void assign_min_cost(const std::array<std::array<double, 8>, 8>& cost, std::arra
         for (int i = 0; i < 8; ++i)
             for (int j = 0; j < 8; ++j) benefit[i][j] = -round_half_away(cost[i][j] * scale);  // maximise -cost
     }
-    auction_assign(benefit, slot_of);
+    slot_assign(benefit, slot_of);
 }
 
 void assign_slots(WideBvh& wide, Progress* progress) {

@@ -74,6 +74,74 @@ TEST(Auction, RealCostTablesMatchBruteForce) {
     }
 }
 
+/// Number of permutations reaching the maximum benefit (brute force).
+int count_optima(const std::array<std::array<int64_t, 8>, 8>& b) {
+    const int64_t best = brute_force_max(b);
+    std::array<int, 8> perm;
+    std::iota(perm.begin(), perm.end(), 0);
+    int count = 0;
+    do {
+        int64_t sum = 0;
+        for (int i = 0; i < 8; ++i) sum += b[i][perm[i]];
+        count += sum == best;
+    } while (std::next_permutation(perm.begin(), perm.end()));
+    return count;
+}
+
+/// Tables of the kinds the slots meet: random ranges, few distinct values
+/// (many ties), rows of zeros (empty slots), and octant tables
+/// cost(c, s) = dot(rel_c, d_s) with coordinates on a coarse grid (a child
+/// centred on its parent in an axis is indifferent to that axis' slot bit).
+std::array<std::array<int64_t, 8>, 8> slot_test_table(std::mt19937& rng, int t) {
+    std::array<std::array<int64_t, 8>, 8> b{};
+    const int zero_rows = t % 3 == 0 ? 0 : int(rng() % 4);
+    if (t % 2 == 0) {
+        const int64_t range = t % 8 == 0 ? 2 : t % 8 == 2 ? 50 : t % 8 == 4 ? 1'000'000 : (int64_t(1) << 40);
+        for (auto& row : b)
+            for (auto& x : row) x = int64_t(rng() % uint64_t(2 * range + 1)) - range;
+    } else {
+        const int64_t grid = t % 4 == 1 ? 2 : 1000;
+        for (auto& row : b) {
+            int64_t rel[3];
+            for (auto& r : rel) r = int64_t(rng() % uint64_t(2 * grid + 1)) - grid;
+            for (int s = 0; s < 8; ++s) {
+                int64_t c = 0;
+                for (int a = 0; a < 3; ++a) c += (s >> (2 - a) & 1) ? -rel[a] : rel[a];
+                row[s] = -c;
+            }
+        }
+    }
+    for (int z = 0; z < zero_rows; ++z) b[rng() % 8] = {};
+    return b;
+}
+
+TEST(Auction, SlotAssignIsTheAuctionsAssignment) {
+    // slot_assign takes a shortest-augmenting-path solve when the optimum is
+    // unique and the auction otherwise: it must give the auction's
+    // assignment on every table, whether the optimum is unique or not.
+    std::mt19937 rng(3);
+    int unique = 0, tied = 0;
+    for (int t = 0; t < 600; ++t) {
+        const auto b = slot_test_table(rng, t);
+        std::array<int, 8> fast{}, auction{};
+        slot_assign(b, fast);
+        auction_assign(b, auction);
+        ASSERT_EQ(fast, auction) << "table " << t;
+        // The uniqueness test agrees with brute force, and a unique optimum
+        // is the auction's assignment.
+        std::array<int, 8> direct{};
+        const bool is_unique = count_optima(b) == 1;
+        ASSERT_EQ(unique_max_benefit(b, direct), is_unique) << "table " << t;
+        if (is_unique) {
+            EXPECT_EQ(direct, auction) << "table " << t;
+        }
+        (is_unique ? unique : tied) += 1;
+    }
+    // Both paths are exercised.
+    EXPECT_GT(unique, 100);
+    EXPECT_GT(tied, 100);
+}
+
 TEST(Auction, Deterministic) {
     std::array<std::array<int64_t, 8>, 8> b{};  // all ties
     std::array<int, 8> a{}, c{};

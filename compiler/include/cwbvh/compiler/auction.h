@@ -28,13 +28,29 @@ void assign_slots(WideBvh& wide, Progress* progress = nullptr);
 /// optimal (Bertsekas 1992, prop. 1). object_of[i] = object of person i.
 void auction_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::array<int, 8>& object_of);
 
+/// Maximum-benefit assignment by shortest augmenting paths with potentials
+/// (Kuhn-Munkres in the form of Jonker and Volgenant 1987), exact in
+/// integers, for |b| <= 2^40. Returns true, with the assignment in object_of,
+/// when it is the ONLY maximum-benefit assignment; false when another one
+/// exists (object_of is then unspecified). Uniqueness is read off the final
+/// potentials: every optimal assignment uses only edges of reduced cost 0, and
+/// another one exists iff those edges hold an alternating cycle.
+bool unique_max_benefit(const std::array<std::array<int64_t, 8>, 8>& benefit, std::array<int, 8>& object_of);
+
+/// auction_assign's assignment, faster: when the maximum-benefit assignment
+/// is unique (at most one zero row, and no alternating cycle on the tight
+/// edges of a shortest-augmenting-path solve), that solve's assignment, which
+/// is then the one the auction ends with (its result is optimal); otherwise
+/// auction_assign itself. Same contract as auction_assign.
+void slot_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::array<int, 8>& object_of);
+
 /// The slot cost table of one wide node of `wide`: cost[i][s] for child slot i
 /// (empty slots: 0 for every s).
 std::array<std::array<double, 8>, 8> slot_cost_table(const WideBvh& wide, const WideNode& node);
 
 /// Minimum-cost assignment for a real cost table: costs are mapped to integers
 /// (scaled so that max |cost| -> 2^30, rounded to nearest) and solved exactly
-/// with auction_assign. The result is optimal up to 8 rounding steps of
+/// with slot_assign (i.e. the auction's assignment). The result is optimal up to 8 rounding steps of
 /// max|cost| * 2^-30.
 void assign_min_cost(const std::array<std::array<double, 8>, 8>& cost, std::array<int, 8>& slot_of);
 
