@@ -46,6 +46,7 @@ QUICK_SCENES = ["bunny", "dragon_res4"]
 DEFAULT_VIEWS = os.environ.get("CWBVH_VIEWS") or os.path.join(ROOT, "views", "catalog.txt")
 
 BUILD_CONFIGS = [("sbvh", "optimal"), ("sbvh", "greedy"), ("embree", "optimal"), ("embree", "greedy")]
+DEFAULT_SPLIT_ALPHA = 3e-5  # cwbvhc --split-alpha default (SbvhConfig, compiler/include/cwbvh/compiler/build.h)
 
 
 def log(*a):
@@ -150,7 +151,7 @@ class Bench:
                 out = os.path.join(self.work, "%s_%s_%s.cwbvh" % (name, builder, collapse))
                 runs = [self.compile(mesh, out, builder, collapse, threads) for _ in range(reps)]
                 s0 = runs[0]
-                row = {"scene": name, "builder": builder, "collapse": collapse, "split_alpha": 1e-5,
+                row = {"scene": name, "builder": builder, "collapse": collapse, "split_alpha": DEFAULT_SPLIT_ALPHA,
                        "threads": threads, "repeats": reps, "triangles": s0["triangles"]}
                 for phase in s0["seconds"]:
                     row["s_" + phase] = median([r["seconds"][phase] for r in runs])
@@ -171,10 +172,10 @@ class Bench:
             with open(path + ".stats.json") as f:
                 s = json.load(f)
             builder, collapse = key if isinstance(key, tuple) else ("sbvh", "optimal")
-            self.rows["trees"].append(self.tree_row(name, builder, collapse, 1e-5 if key != "alpha1" else 1.0, s, None))
+            self.rows["trees"].append(self.tree_row(name, builder, collapse, DEFAULT_SPLIT_ALPHA if key != "alpha1" else 1.0, s, None))
         # BV2L (leaf ranges) since format 1.1; BVH2 from older compilers.
         bvh2_bytes = st["bytes"].get("BV2L", st["bytes"].get("BVH2"))
-        self.rows["trees"].append(self.tree_row(name, "sbvh", "optimal", 1e-5, st, bvh2_bytes))
+        self.rows["trees"].append(self.tree_row(name, "sbvh", "optimal", DEFAULT_SPLIT_ALPHA, st, bvh2_bytes))
         self.rows["trees"][-1]["config"] = "main(+BVH2)"
         return files
 

@@ -33,7 +33,7 @@ constexpr const char* kUsage =
     "  --threads N            worker threads (default: all cores; output is identical for any N)\n"
     "  --builder sbvh|embree  binary builder (default sbvh)\n"
     "  --collapse optimal|greedy  binary->8-wide collapse (default optimal: Ylitie et al. 2017 DP)\n"
-    "  --split-alpha A        SBVH spatial-split overlap threshold (default 1e-5)\n"
+    "  --split-alpha A        SBVH spatial-split overlap threshold (default 3e-5)\n"
     "  --max-reference-growth G  SBVH reference budget in [0, 1]: at most (1+G) x triangles references\n"
     "                         (default 0.15; 1 for the best SAH on scenes of large triangles, ~10% larger files)\n"
     "  --collapse-cost-prim C triangle cost of the collapse DP, node cost 1 (default 0.3)\n"

@@ -20,12 +20,22 @@ namespace cwbvh::compiler {
 
 struct Progress;
 
+/// Default of SbvhConfig::split_alpha (and of cwbvhc --split-alpha). Stich
+/// et al. suggest 1e-5; 3e-5 skips the spatial-split search on nodes whose
+/// best object split overlaps less, which cut the dragon's SBVH by ~12% (2
+/// threads, 0.82 -> 0.72 s). Against 1e-5, on every shared scene: at most
+/// +0.25% binary SAH and +0.31% wide SAH (fg_terrain_iceland), -0.05%
+/// children per node (kicad_board), never more bytes per triangle; 5e-5:
+/// +0.60% / +0.71%, 1e-4: +1.5% / +1.7% (issue 11 allows 1% against its
+/// start). Tables: bench/results/quality/2026-11-25-split-alpha.
+inline constexpr float kDefaultSplitAlpha = 3e-5f;
+
 struct SbvhConfig {
     /// Stich et al. 2009, section 4.5: spatial splits are only tried at a node
     /// when the surface area of the overlap of the best object split's two
     /// children, divided by the root's surface area, exceeds alpha.
     /// 1 = never (plain SAH BVH), 0 = always try.
-    float split_alpha = 1e-5f;
+    float split_alpha = kDefaultSplitAlpha;
     /// Binary SAH constants (C_t, C_i). Because every leaf holds exactly one
     /// reference (the collapse needs it), a node is always split and the split
     /// choice minimises A_L*N_L + A_R*N_R whatever these are; they are passed to

@@ -10,6 +10,7 @@
 
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/status.h"
+#include "cwbvh/compiler/build.h"
 
 namespace cwbvh::compiler {
 
@@ -21,7 +22,7 @@ struct CompileOptions {
     int threads = 0;                      ///< 0: all cores; output bytes never depend on it
     BuilderKind builder = kBuilderSbvh;
     CollapseKind collapse = kCollapseOptimal;
-    float split_alpha = 1e-5f;            ///< SBVH overlap threshold (Stich et al. 2009)
+    float split_alpha = kDefaultSplitAlpha;  ///< SBVH overlap threshold (Stich et al. 2009; see build.h)
     float max_reference_growth = 0.15f;   ///< SBVH reference budget: references <= (1 + x) * triangles (see SbvhConfig)
     float collapse_cost_prim = 0.3f;      ///< C_prim of the collapse DP (C_node = 1), stored in BILD
     bool keep_sbvh = false;               ///< write the optional BV2L section (binary BVH with leaf ranges)
