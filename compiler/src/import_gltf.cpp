@@ -192,8 +192,11 @@ void strip_draco_indices(std::vector<uint8_t>& bytes, bool binary, DracoIndices&
 struct LocalPrimitive {
     bool decoded = false;
     bool skipped = false;
-    std::vector<std::array<double, 3>> positions;
+    std::vector<double> positions;  ///< x, y, z per vertex
     std::vector<std::array<uint32_t, 3>> triangles;
+    /// Nodes that still have to emit this mesh (counted over all nodes; the
+    /// last one takes `triangles` instead of a copy).
+    size_t uses_left = 0;
 };
 
 class GltfReader {
@@ -214,8 +217,11 @@ private:
 
     bool byte_range(int buffer_view, size_t offset, size_t elem_size, size_t stride, size_t count,
                     const std::string& what, View& out, std::string& error) const;
+    /// T: double (positions) or uint32_t (indices: every value is an
+    /// unsigned integer below 2^32, exact either way).
+    template <class T>
     bool read_accessor(int index, int type, int components, bool indices, size_t min_count,
-                       std::vector<double>& out, size_t& count, std::string& error) const;
+                       std::vector<T>& out, size_t& count, std::string& error) const;
     bool decode_primitive(size_t mesh, size_t prim, LocalPrimitive& lp, RawInput& out,
                           std::string& error);
     bool emit_mesh(int mesh, const glm::dmat4& world, RawInput& out, std::string& error);
@@ -279,8 +285,9 @@ bool GltfReader::byte_range(int buffer_view, size_t offset, size_t elem_size, si
 /// `out` (count * components doubles), applying sparse substitution. For
 /// indices only unsigned byte/short/int are allowed, else float or (with
 /// KHR_mesh_quantization) 8/16-bit integers.
+template <class T>
 bool GltfReader::read_accessor(int index, int type, int components, bool indices,
-                               size_t min_count, std::vector<double>& out, size_t& count,
+                               size_t min_count, std::vector<T>& out, size_t& count,
                                std::string& error) const {
     const std::string what = "accessor " + std::to_string(index);
     if (index < 0 || size_t(index) >= model_.accessors.size()) {
@@ -342,13 +349,15 @@ bool GltfReader::read_accessor(int index, int type, int components, bool indices
                 std::to_string(kMaxUnbackedCount) + ")";
         return false;
     }
-    out.assign(count * size_t(components), 0.0);
-    if (view.base != nullptr) {
+    if (view.base == nullptr) {
+        out.assign(count * size_t(components), T(0));
+    } else {
+        out.clear();  // filled by push_back: no zero fill of memory written right after
+        out.reserve(count * size_t(components));
         for (size_t i = 0; i < count; ++i) {
             const uint8_t* p = view.base + i * view.stride;
             for (int c = 0; c < components; ++c)
-                out[i * size_t(components) + size_t(c)] =
-                    read_component(p + size_t(c) * size_t(csize), ct, acc.normalized);
+                out.push_back(T(read_component(p + size_t(c) * size_t(csize), ct, acc.normalized)));
         }
     }
     if (acc.sparse.isSparse) {
@@ -386,8 +395,8 @@ bool GltfReader::read_accessor(int index, int type, int components, bool indices
             const size_t i = size_t(di);
             for (int c = 0; c < components; ++c)
                 out[i * size_t(components) + size_t(c)] =
-                    read_component(vv.base + k * elem + size_t(c) * size_t(csize), ct,
-                                   acc.normalized);
+                    T(read_component(vv.base + k * elem + size_t(c) * size_t(csize), ct,
+                                     acc.normalized));
         }
     }
     return true;
@@ -484,15 +493,14 @@ bool GltfReader::decode_primitive(size_t mesh, size_t prim, LocalPrimitive& lp, 
             }
             warnings_.push_back(name + ": " + mismatch);
         }
-        lp.positions.resize(verts.size());
+        lp.positions.resize(3 * verts.size());
         for (size_t i = 0; i < verts.size(); ++i)
-            lp.positions[i] = {verts[i][0], verts[i][1], verts[i][2]};
+            for (int a = 0; a < 3; ++a) lp.positions[3 * i + size_t(a)] = verts[i][a];
         return true;
     }
 
-    std::vector<double> pos;
     size_t nv = 0;
-    if (!read_accessor(pos_acc, TINYGLTF_TYPE_VEC3, 3, false, 0, pos, nv, error)) {
+    if (!read_accessor(pos_acc, TINYGLTF_TYPE_VEC3, 3, false, 0, lp.positions, nv, error)) {
         error = name + " POSITION: " + error;
         return false;
     }
@@ -500,32 +508,28 @@ bool GltfReader::decode_primitive(size_t mesh, size_t prim, LocalPrimitive& lp, 
         error = name + ": too many vertices";
         return false;
     }
-    lp.positions.resize(nv);
-    for (size_t i = 0; i < nv; ++i) lp.positions[i] = {pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]};
 
     std::vector<uint32_t> idx;
     if (p.indices >= 0) {
-        std::vector<double> raw;
         size_t n = 0;
-        if (!read_accessor(p.indices, TINYGLTF_TYPE_SCALAR, 1, true, 0, raw, n, error)) {
+        if (!read_accessor(p.indices, TINYGLTF_TYPE_SCALAR, 1, true, 0, idx, n, error)) {
             error = name + " indices: " + error;
             return false;
         }
-        idx.resize(n);
         for (size_t i = 0; i < n; ++i) {
-            if (raw[i] >= double(nv)) {
-                error = name + ": index " + std::to_string(uint64_t(raw[i])) + " at position " +
+            if (idx[i] >= nv) {
+                error = name + ": index " + std::to_string(idx[i]) + " at position " +
                         std::to_string(i) + " is out of range (" + std::to_string(nv) +
                         " vertices)";
                 return false;
             }
-            idx[i] = uint32_t(raw[i]);
         }
     } else {
         idx.resize(nv);
         for (size_t i = 0; i < nv; ++i) idx[i] = uint32_t(i);
     }
     const size_t n = idx.size();
+    lp.triangles.reserve(p.mode == TINYGLTF_MODE_TRIANGLES ? n / 3 : (n >= 2 ? n - 2 : 0));
     // Triangulation exactly as the glTF 2.0 spec ("Meshes", primitive modes).
     if (p.mode == TINYGLTF_MODE_TRIANGLES) {
         if (n % 3 != 0)
@@ -557,14 +561,23 @@ bool GltfReader::emit_mesh(int mesh, const glm::dmat4& world, RawInput& out,
         RawPrimitive rp;
         rp.mesh = uint32_t(m);
         rp.primitive = uint32_t(k);
-        rp.triangles = lp.triangles;
-        rp.vertices.resize(lp.positions.size());
-        for (size_t i = 0; i < lp.positions.size(); ++i) {
-            const auto& q = lp.positions[i];
+        const size_t nv = lp.positions.size() / 3;
+        rp.vertices.resize(nv);
+        for (size_t i = 0; i < nv; ++i) {
+            const double* q = &lp.positions[3 * i];
             const glm::dvec4 w = world * glm::dvec4(q[0], q[1], q[2], 1.0);
             // Composition and transform in double; one final round to nearest
             // float (identity transforms reproduce float input exactly).
             rp.vertices[i] = {float(w.x), float(w.y), float(w.z)};
+        }
+        // The last node that names the mesh takes its triangles instead of a
+        // copy; the cache entry is then reset, so that a further instance
+        // (a node of several parents, permissive mode) decodes it again.
+        if (--lp.uses_left == 0) {
+            rp.triangles = std::move(lp.triangles);
+            lp = LocalPrimitive{};
+        } else {
+            rp.triangles = lp.triangles;
         }
         out.primitives.push_back(std::move(rp));
     }
@@ -622,6 +635,17 @@ bool GltfReader::run(RawInput& out, std::string& error) {
     cache_.resize(model_.meshes.size());
     for (size_t m = 0; m < model_.meshes.size(); ++m)
         cache_[m].resize(model_.meshes[m].primitives.size());
+    // How many nodes name each mesh (all nodes, reachable or not): the
+    // emissions each cache entry serves before its last one.
+    auto count_use = [&](size_t m) {
+        for (LocalPrimitive& lp : cache_[m]) ++lp.uses_left;
+    };
+    if (model_.scenes.empty()) {
+        for (size_t m = 0; m < model_.meshes.size(); ++m) count_use(m);
+    } else {
+        for (const tg::Node& node : model_.nodes)
+            if (node.mesh >= 0 && size_t(node.mesh) < model_.meshes.size()) count_use(size_t(node.mesh));
+    }
 
     if (model_.scenes.empty()) {
         // No scene: every mesh once with the identity transform.
@@ -733,6 +757,7 @@ Result import_gltf(const std::string& path, const ImportOptions& options, RawInp
                    : loader.LoadASCIIFromString(&model, &err, &warn,
                                                 reinterpret_cast<const char*>(bytes.data()),
                                                 unsigned(bytes.size()), base_dir);
+        std::vector<uint8_t>().swap(bytes);  // tinygltf holds its own copy of the buffers
         for (const std::string& w : split_lines(warn)) warnings.push_back("tinygltf: " + w);
         if (!ok) {
             const auto lines = split_lines(err);
