@@ -35,17 +35,15 @@ void auction_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::a
     int64_t eps = (hi - lo) / 4;
     if (eps < 1) eps = 1;
     for (;;) {
-        // One scaling phase: start unassigned, keep the prices.
-        for (int j = 0; j < n; ++j) owner[j] = -1;
-        for (int i = 0; i < n; ++i) object_of[i] = -1;
-        uint32_t unassigned = (1u << n) - 1;
+        // One scaling phase: start unassigned, keep the prices. owner[j] = n
+        // is no one: a ninth person whose bit is masked off, so that a bid
+        // displaces without a branch (who owned the object is data).
+        // object_of is read off the owners after the last phase.
+        for (int j = 0; j < n; ++j) owner[j] = n;
+        constexpr uint32_t kAll = (1u << n) - 1;
+        uint32_t unassigned = kAll;
         while (unassigned != 0) {
             const int i = __builtin_ctz(unassigned);  // fixed bidding order: the lowest unassigned person
-            // Best object (ties: the lowest) and the best value among the
-            // others, without branches (which object wins a bid is data):
-            // the maximum and its lowest index, then the maximum over the
-            // other objects (a second object equal to the best gives v2 = v1,
-            // as the one-pass loop did).
             // Best object (ties: the lowest), its value v1 and the best value
             // among the other objects v2 (a second object equal to the best
             // gives v2 = v1), in one pass without branches (which object wins
@@ -64,15 +62,13 @@ void auction_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::a
             }
             price[best] += v1 - v2 + eps;  // bid increment >= eps > 0
             const int previous = owner[best];
-            if (previous >= 0) {
-                object_of[previous] = -1;
-                unassigned |= 1u << previous;
-            }
             owner[best] = i;
-            object_of[i] = best;
-            unassigned &= ~(1u << i);
+            unassigned = (unassigned & ~(1u << i)) | ((1u << previous) & kAll);
         }
-        if (eps == 1) break;
+        if (eps == 1) {
+            for (int j = 0; j < n; ++j) object_of[owner[j]] = j;  // every object is owned: a permutation
+            break;
+        }
         // Scaling factor 8 (Bertsekas suggests 4-10): ~11 phases over the
         // 2^34 benefit range instead of ~17 with 4; the slots phase of the
         // dragon took 0.29 s with 4.

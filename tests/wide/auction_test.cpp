@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <climits>
 #include <numeric>
 #include <random>
 
@@ -113,6 +114,57 @@ std::array<std::array<int64_t, 8>, 8> slot_test_table(std::mt19937& rng, int t) 
     }
     for (int z = 0; z < zero_rows; ++z) b[rng() % 8] = {};
     return b;
+}
+
+/// The auction as auction.h states it, written plainly: benefits x 9,
+/// eps from (max - min) / 4 down by 8 to 1, each phase from all unassigned
+/// with the prices kept, the lowest unassigned person bids for its best
+/// object (ties: the lowest) by best - second best + eps. auction_assign
+/// must give exactly its assignments (its ties decide the files' slots).
+std::array<int, 8> textbook_auction(const std::array<std::array<int64_t, 8>, 8>& benefit) {
+    int64_t b[8][8], lo = INT64_MAX, hi = INT64_MIN;
+    for (int i = 0; i < 8; ++i)
+        for (int j = 0; j < 8; ++j) {
+            b[i][j] = benefit[i][j] * 9;
+            lo = std::min(lo, b[i][j]);
+            hi = std::max(hi, b[i][j]);
+        }
+    int64_t price[8] = {};
+    std::array<int, 8> object_of{};
+    int64_t eps = std::max<int64_t>(1, (hi - lo) / 4);
+    for (;;) {
+        int owner[8];
+        std::fill(owner, owner + 8, -1);
+        object_of.fill(-1);
+        for (;;) {
+            int i = 0;
+            while (i < 8 && object_of[i] >= 0) ++i;
+            if (i == 8) break;
+            int best = 0;
+            for (int j = 1; j < 8; ++j)
+                if (b[i][j] - price[j] > b[i][best] - price[best]) best = j;
+            int64_t second = INT64_MIN;
+            for (int j = 0; j < 8; ++j)
+                if (j != best) second = std::max(second, b[i][j] - price[j]);
+            price[best] += b[i][best] - price[best] - second + eps;
+            if (owner[best] >= 0) object_of[owner[best]] = -1;
+            owner[best] = i;
+            object_of[i] = best;
+        }
+        if (eps == 1) break;
+        eps = std::max<int64_t>(1, eps / 8);
+    }
+    return object_of;
+}
+
+TEST(Auction, IsTheTextbookAuction) {
+    std::mt19937 rng(4);
+    for (int t = 0; t < 600; ++t) {
+        const auto b = slot_test_table(rng, t);
+        std::array<int, 8> fast{};
+        auction_assign(b, fast);
+        ASSERT_EQ(fast, textbook_auction(b)) << "table " << t;
+    }
 }
 
 TEST(Auction, SlotAssignIsTheAuctionsAssignment) {
