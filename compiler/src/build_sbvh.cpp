@@ -766,10 +766,29 @@ private:
             return index;
         }
         if (depth == 0) root_area_ = box.half_area();
+        if (n == 2 && n < config_.min_spatial_refs) {
+            // What the sweep decides for two references, without it: every
+            // axis costs A(first) + A(second) (the same sum in either order),
+            // so axis 0 keeps the split (a tie changes the axis only within
+            // one axis) and its first reference goes left.
+            object_splits_.fetch_add(1, std::memory_order_relaxed);
+            const SmallSet ls{s.refs, {s.order[0], s.order[0], s.order[0]}, s.order[0], 1};
+            const SmallSet rs{s.refs, {s.order[0] + 1, s.order[0] + 1, s.order[0] + 1}, s.order[0] + 1, 1};
+            const uint32_t l = build_small(out, ls, 0, depth + 1, chops);
+            const uint32_t r = build_small(out, rs, 0, depth + 1, chops);
+            out[index].child[0] = l;
+            out[index].child[1] = r;
+            return index;
+        }
         const Split object = sweep_sorted(n, [&](int a, size_t i) -> const Ref& { return s.refs[s.order[a][i]]; });
         Children kids;
         RefList list;
-        const bool spatial = try_spatial(object, box, budget, depth, chops, [&]() -> const RefList& {
+        // Below min_spatial_refs neither this node nor any node under it (its
+        // object splits only make smaller ones) tries a spatial split
+        // (try_spatial's first test): the budget and the chops are never read
+        // again, so they are not shared out (no box areas summed).
+        const bool spatial_possible = n >= config_.min_spatial_refs;
+        const bool spatial = spatial_possible && try_spatial(object, box, budget, depth, chops, [&]() -> const RefList& {
             list.resize(n);
             for (size_t i = 0; i < n; ++i) list[i] = s.refs[s.list[i]];
             return list;
@@ -788,11 +807,8 @@ private:
         // partition's `left`, in the same order, hence the same sums).
         const int best = object.axis;
         const size_t k = object.index;
-        double wl = 0.0, wr = 0.0;
         bool goes_left[kSweepMaxRefs];
         for (size_t i = 0; i < n; ++i) goes_left[s.order[best][i]] = i < k;
-        for (size_t i = 0; i < k; ++i) wl += Box4::of(s.refs[s.order[best][i]].box).half_area();
-        for (size_t i = k; i < n; ++i) wr += Box4::of(s.refs[s.order[best][i]].box).half_area();
         for (int a = 0; a < 3; ++a) {
             if (a == best) continue;
             uint8_t right[kSweepMaxRefs];
@@ -807,7 +823,12 @@ private:
             }
             std::copy(right, right + nr, s.order[a] + nl);
         }
-        share_budget(n, k, n - k, budget, chops, wl, wr, kids);
+        if (spatial_possible) {
+            double wl = 0.0, wr = 0.0;
+            for (size_t i = 0; i < k; ++i) wl += Box4::of(s.refs[s.order[best][i]].box).half_area();
+            for (size_t i = k; i < n; ++i) wr += Box4::of(s.refs[s.order[best][i]].box).half_area();
+            share_budget(n, k, n - k, budget, chops, wl, wr, kids);
+        }
         const SmallSet ls{s.refs, {s.order[0], s.order[1], s.order[2]}, s.order[best], k};
         const SmallSet rs{s.refs, {s.order[0] + k, s.order[1] + k, s.order[2] + k}, s.order[best] + k, n - k};
         const uint32_t l = build_small(out, ls, kids.budget_left, depth + 1, kids.chops);
