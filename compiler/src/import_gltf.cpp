@@ -352,12 +352,37 @@ bool GltfReader::read_accessor(int index, int type, int components, bool indices
     if (view.base == nullptr) {
         out.assign(count * size_t(components), T(0));
     } else {
-        out.clear();  // filled by push_back: no zero fill of memory written right after
-        out.reserve(count * size_t(components));
-        for (size_t i = 0; i < count; ++i) {
-            const uint8_t* p = view.base + i * view.stride;
-            for (int c = 0; c < components; ++c)
-                out.push_back(T(read_component(p + size_t(c) * size_t(csize), ct, acc.normalized)));
+        out.resize(count * size_t(components));
+        // Not normalized (indices, float positions, integer positions
+        // without normalization): T(c) is T(double(c)), read_component's
+        // value, without its switch per component.
+        auto direct = [&](auto zero) {
+            using C = decltype(zero);
+            for (size_t i = 0; i < count; ++i) {
+                const uint8_t* p = view.base + i * view.stride;
+                for (int c = 0; c < components; ++c) {
+                    C v;
+                    std::memcpy(&v, p + size_t(c) * sizeof(C), sizeof(C));
+                    out[i * size_t(components) + size_t(c)] = T(v);
+                }
+            }
+        };
+        if (acc.normalized && ct != TINYGLTF_COMPONENT_TYPE_FLOAT) {
+            for (size_t i = 0; i < count; ++i) {
+                const uint8_t* p = view.base + i * view.stride;
+                for (int c = 0; c < components; ++c)
+                    out[i * size_t(components) + size_t(c)] =
+                        T(read_component(p + size_t(c) * size_t(csize), ct, true));
+            }
+        } else {
+            switch (ct) {
+                case TINYGLTF_COMPONENT_TYPE_BYTE: direct(int8_t{}); break;
+                case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: direct(uint8_t{}); break;
+                case TINYGLTF_COMPONENT_TYPE_SHORT: direct(int16_t{}); break;
+                case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: direct(uint16_t{}); break;
+                case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: direct(uint32_t{}); break;
+                default: direct(float{}); break;  // FLOAT: the only other type ct_ok admits
+            }
         }
     }
     if (acc.sparse.isSparse) {
