@@ -76,29 +76,37 @@ void auction_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::a
     }
 }
 
-bool unique_max_benefit(const std::array<std::array<int64_t, 8>, 8>& benefit, std::array<int, 8>& object_of) {
+bool unique_max_benefit(const std::array<std::array<int64_t, 8>, 8>& benefit, uint8_t empty,
+                        std::array<int, 8>& object_of) {
     constexpr int n = 8;
     constexpr int64_t kInf = INT64_MAX / 4;  // |benefit| <= 2^40: potentials and path lengths stay below 2^45
-    // Persons and objects are numbered 1..n; object 0 is the search's start.
+    int row[n];  // the persons that count, k of them
+    int k = 0;
+    for (int i = 0; i < n; ++i)
+        if (!(empty >> i & 1)) row[k++] = i;
+    // Rows 1..k (person row[r - 1]) and objects 1..n; object 0 is the
+    // search's start. Every object that a search visits is assigned from then
+    // on, and only visited objects' potentials change: an unassigned object
+    // keeps v = 0, an assigned one v <= 0.
     int64_t u[n + 1] = {}, v[n + 1] = {};
     int person_of[n + 1] = {}, way[n + 1] = {};
-    for (int i = 1; i <= n; ++i) {
-        person_of[0] = i;
+    for (int r = 1; r <= k; ++r) {
+        person_of[0] = r;
         int j0 = 0;
         int64_t minv[n + 1];
         bool used[n + 1] = {};
         for (int j = 0; j <= n; ++j) minv[j] = kInf;
         do {
             used[j0] = true;
-            const int i0 = person_of[j0];
-            const int64_t* b = benefit[i0 - 1].data();
-            const int64_t ui0 = u[i0];
+            const int r0 = person_of[j0];
+            const int64_t* b = benefit[row[r0 - 1]].data();
+            const int64_t ur0 = u[r0];
             int64_t delta = kInf;
             int j1 = 0;
             // Without branches (which object improves is data): a used
             // object neither improves nor wins (its values read as kInf).
             for (int j = 1; j <= n; ++j) {
-                const int64_t cur = used[j] ? kInf : -b[j - 1] - ui0 - v[j];
+                const int64_t cur = used[j] ? kInf : -b[j - 1] - ur0 - v[j];
                 const bool better = cur < minv[j];
                 minv[j] = better ? cur : minv[j];
                 way[j] = better ? j0 : way[j];
@@ -121,36 +129,48 @@ bool unique_max_benefit(const std::array<std::array<int64_t, 8>, 8>& benefit, st
             j0 = j1;
         } while (j0 != 0);
     }
-    for (int j = 1; j <= n; ++j) object_of[person_of[j] - 1] = j - 1;
-    // next[i]: the persons whose objects person i reaches on a tight edge.
-    uint32_t reach[n];
-    for (int i = 0; i < n; ++i) {
+    // Another optimal assignment of the k persons exists iff, on the edges of
+    // reduced cost 0 (every optimal assignment uses only those), an
+    // alternating cycle exists, or an alternating path that moves a person
+    // onto an unassigned object and ends by releasing an object whose
+    // potential is 0 (the only objects another optimum may leave unassigned).
+    // Graph on rows: r -> r' when r can take r''s object; bit kFree when r
+    // can take an unassigned object.
+    constexpr uint32_t kFree = 1u << n;
+    uint32_t reach[n] = {};
+    int object_of_row[n] = {};
+    for (int j = 1; j <= n; ++j)
+        if (person_of[j] != 0) object_of_row[person_of[j] - 1] = j;
+    for (int r = 0; r < k; ++r) {
         uint32_t m = 0;
         for (int j = 1; j <= n; ++j) {
-            const int other = person_of[j] - 1;
-            const bool tight = -benefit[i][j - 1] - u[i + 1] - v[j] == 0;
-            m |= uint32_t(tight && other != i) << other;
+            const bool tight = -benefit[row[r]][j - 1] - u[r + 1] - v[j] == 0;
+            const int other = person_of[j] - 1;  // -1: unassigned
+            m |= tight && other < 0 ? kFree : 0;
+            m |= uint32_t(tight && other >= 0 && other != r) << (other & 31);
         }
-        reach[i] = m;
+        reach[r] = m;
     }
-    for (int k = 0; k < n; ++k)  // transitive closure (Warshall on bit rows)
-        for (int i = 0; i < n; ++i)
-            if (reach[i] >> k & 1) reach[i] |= reach[k];
-    for (int i = 0; i < n; ++i)
-        if (reach[i] >> i & 1) return false;  // a cycle: another optimum
+    for (int q = 0; q < k; ++q)  // transitive closure (Warshall on bit rows)
+        for (int r = 0; r < k; ++r)
+            if (reach[r] >> q & 1) reach[r] |= reach[q];
+    for (int r = 0; r < k; ++r) {
+        if (reach[r] >> r & 1) return false;                           // a cycle
+        if ((reach[r] & kFree) && v[object_of_row[r]] == 0) return false;  // a path that releases r's object
+    }
+    // The unique optimum; the other persons take the objects left, lowest first.
+    for (int r = 0; r < k; ++r) object_of[row[r]] = object_of_row[r] - 1;
+    int next = 1;
+    for (int i = 0; i < n; ++i) {
+        if (!(empty >> i & 1)) continue;
+        while (person_of[next] != 0) ++next;
+        object_of[i] = next++ - 1;
+    }
     return true;
 }
 
-void slot_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::array<int, 8>& object_of) {
-    // Two rows of zeros (empty child slots) can always swap objects: the
-    // optimum is not unique, the auction decides.
-    int zero_rows = 0;
-    for (const auto& row : benefit) {
-        bool zero = true;
-        for (int64_t x : row) zero &= x == 0;
-        zero_rows += zero;
-    }
-    if (zero_rows < 2 && unique_max_benefit(benefit, object_of)) return;
+void slot_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, uint8_t empty, std::array<int, 8>& object_of) {
+    if (unique_max_benefit(benefit, empty, object_of)) return;
     auction_assign(benefit, object_of);
 }
 
@@ -186,7 +206,7 @@ inline int64_t round_half_away(double x) {
 }
 }  // namespace
 
-void assign_min_cost(const std::array<std::array<double, 8>, 8>& cost, std::array<int, 8>& slot_of) {
+void assign_min_cost(const std::array<std::array<double, 8>, 8>& cost, uint8_t empty, std::array<int, 8>& slot_of) {
     double max_abs = 0.0;
     for (const auto& row : cost)
         for (double c : row) max_abs = std::fabs(c) > max_abs ? std::fabs(c) : max_abs;
@@ -196,7 +216,7 @@ void assign_min_cost(const std::array<std::array<double, 8>, 8>& cost, std::arra
         for (int i = 0; i < 8; ++i)
             for (int j = 0; j < 8; ++j) benefit[i][j] = -round_half_away(cost[i][j] * scale);  // maximise -cost
     }
-    slot_assign(benefit, slot_of);
+    slot_assign(benefit, empty, slot_of);
 }
 
 void assign_slots(WideBvh& wide, Progress* progress) {
@@ -205,7 +225,9 @@ void assign_slots(WideBvh& wide, Progress* progress) {
         for (size_t k = r.begin(); k != r.end(); ++k) {
             WideNode& node = wide.nodes[k];
             std::array<int, 8> slot_of{};
-            assign_min_cost(slot_cost_table(wide, node), slot_of);
+            uint8_t empty = 0;
+            for (int i = 0; i < kWidth; ++i) empty |= uint8_t((node.slots[i].kind == WideChild::kEmpty) << i);
+            assign_min_cost(slot_cost_table(wide, node), empty, slot_of);
             std::array<WideChild, 8> slots;
             for (int i = 0; i < kWidth; ++i) slots[slot_of[i]] = node.slots[i];
             node.slots = slots;

@@ -65,7 +65,8 @@ TEST(Auction, RealCostTablesMatchBruteForce) {
         for (int i = 0; i < 8; ++i)
             for (int j = 0; j < 8; ++j) neg[i][j] = -cost[i][j];
         std::array<int, 8> slot{};
-        assign_min_cost(cost, slot);
+        const uint8_t empty = uint8_t(0xFF << children);  // rows >= children are empty slots
+        assign_min_cost(cost, empty, slot);
         ASSERT_TRUE(is_permutation(slot));
         double sum = 0, max_abs = 0;
         for (int i = 0; i < 8; ++i) sum += cost[i][slot[i]];
@@ -75,25 +76,32 @@ TEST(Auction, RealCostTablesMatchBruteForce) {
     }
 }
 
-/// Number of permutations reaching the maximum benefit (brute force).
-int count_optima(const std::array<std::array<int64_t, 8>, 8>& b) {
+/// Number of distinct assignments of the persons not in `empty` that reach
+/// the maximum benefit (brute force over all 8! permutations; permutations
+/// that differ only in where the `empty` persons go count once).
+int count_optima(const std::array<std::array<int64_t, 8>, 8>& b, uint8_t empty) {
     const int64_t best = brute_force_max(b);
     std::array<int, 8> perm;
     std::iota(perm.begin(), perm.end(), 0);
-    int count = 0;
+    std::vector<std::array<int, 8>> seen;
     do {
         int64_t sum = 0;
         for (int i = 0; i < 8; ++i) sum += b[i][perm[i]];
-        count += sum == best;
+        if (sum != best) continue;
+        std::array<int, 8> counted = perm;
+        for (int i = 0; i < 8; ++i)
+            if (empty >> i & 1) counted[i] = -1;
+        if (std::find(seen.begin(), seen.end(), counted) == seen.end()) seen.push_back(counted);
     } while (std::next_permutation(perm.begin(), perm.end()));
-    return count;
+    return int(seen.size());
 }
 
 /// Tables of the kinds the slots meet: random ranges, few distinct values
-/// (many ties), rows of zeros (empty slots), and octant tables
+/// (many ties), rows of zeros (empty slots, marked in `empty`, and children
+/// whose row happens to be zero, not marked), and octant tables
 /// cost(c, s) = dot(rel_c, d_s) with coordinates on a coarse grid (a child
 /// centred on its parent in an axis is indifferent to that axis' slot bit).
-std::array<std::array<int64_t, 8>, 8> slot_test_table(std::mt19937& rng, int t) {
+std::array<std::array<int64_t, 8>, 8> slot_test_table(std::mt19937& rng, int t, uint8_t& empty) {
     std::array<std::array<int64_t, 8>, 8> b{};
     const int zero_rows = t % 3 == 0 ? 0 : int(rng() % 4);
     if (t % 2 == 0) {
@@ -112,7 +120,18 @@ std::array<std::array<int64_t, 8>, 8> slot_test_table(std::mt19937& rng, int t) 
             }
         }
     }
-    for (int z = 0; z < zero_rows; ++z) b[rng() % 8] = {};
+    empty = 0;
+    for (int z = 0; z < zero_rows; ++z) {
+        const int i = int(rng() % 8);
+        b[size_t(i)] = {};
+        if (rng() % 4 != 0) empty = uint8_t(empty | 1u << i);  // mostly empty slots, some zero children
+    }
+    if (t % 5 == 0) {  // nodes of few children: up to 6 empty slots
+        for (int i = 8 - int(rng() % 7); i < 8; ++i) {
+            b[size_t(i)] = {};
+            empty = uint8_t(empty | 1u << i);
+        }
+    }
     return b;
 }
 
@@ -160,7 +179,8 @@ std::array<int, 8> textbook_auction(const std::array<std::array<int64_t, 8>, 8>&
 TEST(Auction, IsTheTextbookAuction) {
     std::mt19937 rng(4);
     for (int t = 0; t < 600; ++t) {
-        const auto b = slot_test_table(rng, t);
+        uint8_t empty = 0;
+        const auto b = slot_test_table(rng, t, empty);
         std::array<int, 8> fast{};
         auction_assign(b, fast);
         ASSERT_EQ(fast, textbook_auction(b)) << "table " << t;
@@ -168,30 +188,42 @@ TEST(Auction, IsTheTextbookAuction) {
 }
 
 TEST(Auction, SlotAssignIsTheAuctionsAssignment) {
-    // slot_assign takes a shortest-augmenting-path solve when the optimum is
-    // unique and the auction otherwise: it must give the auction's
-    // assignment on every table, whether the optimum is unique or not.
+    // slot_assign takes a shortest-augmenting-path solve when the counted
+    // persons' optimum is unique and the auction otherwise: every counted
+    // person must get the auction's object, whether the optimum is unique or
+    // not; the empty slots take the other objects.
     std::mt19937 rng(3);
-    int unique = 0, tied = 0;
+    int unique = 0, tied = 0, unique_with_empties = 0;
     for (int t = 0; t < 600; ++t) {
-        const auto b = slot_test_table(rng, t);
+        uint8_t empty = 0;
+        const auto b = slot_test_table(rng, t, empty);
         std::array<int, 8> fast{}, auction{};
-        slot_assign(b, fast);
+        slot_assign(b, empty, fast);
         auction_assign(b, auction);
-        ASSERT_EQ(fast, auction) << "table " << t;
+        ASSERT_TRUE(is_permutation(fast)) << "table " << t;
+        for (int i = 0; i < 8; ++i)
+            if (!(empty >> i & 1)) {
+                ASSERT_EQ(fast[i], auction[i]) << "table " << t << " person " << i;
+            }
         // The uniqueness test agrees with brute force, and a unique optimum
         // is the auction's assignment.
         std::array<int, 8> direct{};
-        const bool is_unique = count_optima(b) == 1;
-        ASSERT_EQ(unique_max_benefit(b, direct), is_unique) << "table " << t;
+        const bool is_unique = count_optima(b, empty) == 1;
+        ASSERT_EQ(unique_max_benefit(b, empty, direct), is_unique) << "table " << t;
         if (is_unique) {
-            EXPECT_EQ(direct, auction) << "table " << t;
+            ASSERT_TRUE(is_permutation(direct)) << "table " << t;
+            for (int i = 0; i < 8; ++i)
+                if (!(empty >> i & 1)) {
+                    EXPECT_EQ(direct[i], auction[i]) << "table " << t;
+                }
         }
         (is_unique ? unique : tied) += 1;
+        unique_with_empties += is_unique && __builtin_popcount(empty) >= 2;
     }
-    // Both paths are exercised.
+    // Every path is exercised.
     EXPECT_GT(unique, 100);
     EXPECT_GT(tied, 100);
+    EXPECT_GT(unique_with_empties, 30);
 }
 
 TEST(Auction, Deterministic) {

@@ -28,21 +28,27 @@ void assign_slots(WideBvh& wide, Progress* progress = nullptr);
 /// optimal (Bertsekas 1992, prop. 1). object_of[i] = object of person i.
 void auction_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::array<int, 8>& object_of);
 
-/// Maximum-benefit assignment by shortest augmenting paths with potentials
-/// (Kuhn-Munkres in the form of Jonker and Volgenant 1987), exact in
-/// integers, for |b| <= 2^40. Returns true, with the assignment in object_of,
-/// when it is the ONLY maximum-benefit assignment; false when another one
-/// exists (object_of is then unspecified). Uniqueness is read off the final
-/// potentials: every optimal assignment uses only edges of reduced cost 0, and
-/// another one exists iff those edges hold an alternating cycle.
-bool unique_max_benefit(const std::array<std::array<int64_t, 8>, 8>& benefit, std::array<int, 8>& object_of);
+/// Maximum-benefit assignment of the persons not in `empty` (bit i: person
+/// i does not count) to distinct objects, by shortest augmenting paths with
+/// potentials (Kuhn-Munkres in the form of Jonker and Volgenant 1987), exact
+/// in integers, for |b| <= 2^40. Returns true when that assignment is the
+/// ONLY maximum-benefit one, with it in object_of and the persons in `empty`
+/// on the objects left over (lowest first); false when another one exists
+/// (object_of is then unspecified). Uniqueness is read off the final
+/// potentials: every optimal assignment uses only edges of reduced cost 0;
+/// another one exists iff those edges hold an alternating cycle, or an
+/// alternating path onto an unassigned object that releases an object of
+/// potential 0.
+bool unique_max_benefit(const std::array<std::array<int64_t, 8>, 8>& benefit, uint8_t empty,
+                        std::array<int, 8>& object_of);
 
-/// auction_assign's assignment, faster: when the maximum-benefit assignment
-/// is unique (at most one zero row, and no alternating cycle on the tight
-/// edges of a shortest-augmenting-path solve), that solve's assignment, which
-/// is then the one the auction ends with (its result is optimal); otherwise
-/// auction_assign itself. Same contract as auction_assign.
-void slot_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, std::array<int, 8>& object_of);
+/// auction_assign's assignment for every person not in `empty`, faster; the
+/// rows of the persons in `empty` must be zero (empty child slots: where they
+/// go changes nothing), and they take the other objects. When the others'
+/// maximum-benefit assignment is unique (unique_max_benefit), it is the one
+/// the auction ends with: the auction's assignment is optimal, and zero rows
+/// add nothing wherever they go. Otherwise auction_assign itself.
+void slot_assign(const std::array<std::array<int64_t, 8>, 8>& benefit, uint8_t empty, std::array<int, 8>& object_of);
 
 /// The slot cost table of one wide node of `wide`: cost[i][s] for child slot i
 /// (empty slots: 0 for every s).
@@ -50,8 +56,9 @@ std::array<std::array<double, 8>, 8> slot_cost_table(const WideBvh& wide, const 
 
 /// Minimum-cost assignment for a real cost table: costs are mapped to integers
 /// (scaled so that max |cost| -> 2^30, rounded to nearest) and solved exactly
-/// with slot_assign (i.e. the auction's assignment). The result is optimal up to 8 rounding steps of
+/// with slot_assign (the auction's assignment; `empty`: the empty slots,
+/// whose rows are zero). The result is optimal up to 8 rounding steps of
 /// max|cost| * 2^-30.
-void assign_min_cost(const std::array<std::array<double, 8>, 8>& cost, std::array<int, 8>& slot_of);
+void assign_min_cost(const std::array<std::array<double, 8>, 8>& cost, uint8_t empty, std::array<int, 8>& slot_of);
 
 }  // namespace cwbvh::compiler
