@@ -32,6 +32,8 @@
 #define TINYGLTF_NO_STB_IMAGE_WRITE
 #define TINYGLTF_NO_EXTERNAL_IMAGE
 #include <tiny_gltf.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <glm/glm.hpp>
 #include <glm/gtc/quaternion.hpp>
 #if defined(__GNUC__)
@@ -39,6 +41,7 @@
 #endif
 
 #include "cwbvh/compiler/import.h"
+#include "cwbvh/compiler/parallel_exact.h"
 
 namespace cwbvh::compiler {
 namespace {
@@ -186,6 +189,10 @@ void strip_draco_indices(std::vector<uint8_t>& bytes, bool binary, DracoIndices&
     std::memcpy(out.data() + 8, &total, 4);
     bytes = std::move(out);
 }
+
+/// Elements per task of the importer's parallel loops (each element is
+/// independent: the result does not depend on it).
+constexpr size_t kImportGrain = 16384;
 
 /// Local (untransformed) geometry of one primitive, decoded once and shared
 /// by every node that instances the mesh.
@@ -358,14 +365,17 @@ bool GltfReader::read_accessor(int index, int type, int components, bool indices
         // value, without its switch per component.
         auto direct = [&](auto zero) {
             using C = decltype(zero);
-            for (size_t i = 0; i < count; ++i) {
-                const uint8_t* p = view.base + i * view.stride;
-                for (int c = 0; c < components; ++c) {
-                    C v;
-                    std::memcpy(&v, p + size_t(c) * sizeof(C), sizeof(C));
-                    out[i * size_t(components) + size_t(c)] = T(v);
+            // Each element on its own: in parallel, the same values.
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, count, kImportGrain), [&](const tbb::blocked_range<size_t>& r) {
+                for (size_t i = r.begin(); i != r.end(); ++i) {
+                    const uint8_t* p = view.base + i * view.stride;
+                    for (int c = 0; c < components; ++c) {
+                        C v;
+                        std::memcpy(&v, p + size_t(c) * sizeof(C), sizeof(C));
+                        out[i * size_t(components) + size_t(c)] = T(v);
+                    }
                 }
-            }
+            });
         };
         if (acc.normalized && ct != TINYGLTF_COMPONENT_TYPE_FLOAT) {
             for (size_t i = 0; i < count; ++i) {
@@ -541,13 +551,11 @@ bool GltfReader::decode_primitive(size_t mesh, size_t prim, LocalPrimitive& lp, 
             error = name + " indices: " + error;
             return false;
         }
-        for (size_t i = 0; i < n; ++i) {
-            if (idx[i] >= nv) {
-                error = name + ": index " + std::to_string(idx[i]) + " at position " +
-                        std::to_string(i) + " is out of range (" + std::to_string(nv) +
-                        " vertices)";
-                return false;
-            }
+        const size_t i = lowest_failing(n, kImportGrain, [&](size_t k) { return idx[k] >= nv; });
+        if (i < n) {  // the first out-of-range index reports, as a serial scan would
+            error = name + ": index " + std::to_string(idx[i]) + " at position " + std::to_string(i) +
+                    " is out of range (" + std::to_string(nv) + " vertices)";
+            return false;
         }
     } else {
         idx.resize(nv);
@@ -560,7 +568,10 @@ bool GltfReader::decode_primitive(size_t mesh, size_t prim, LocalPrimitive& lp, 
         if (n % 3 != 0)
             warnings_.push_back(name + ": " + std::to_string(n) +
                                 " indices is not a multiple of 3; the rest is ignored");
-        for (size_t i = 0; i + 2 < n; i += 3) lp.triangles.push_back({idx[i], idx[i + 1], idx[i + 2]});
+        lp.triangles.resize(n / 3);
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, n / 3, kImportGrain), [&](const tbb::blocked_range<size_t>& r) {
+            for (size_t t = r.begin(); t != r.end(); ++t) lp.triangles[t] = {idx[3 * t], idx[3 * t + 1], idx[3 * t + 2]};
+        });
     } else if (p.mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
         // p_i = {v_i, v_{i+(1+i%2)}, v_{i+(2-i%2)}}: alternate winding.
         for (size_t i = 0; i + 2 < n; ++i)
@@ -588,13 +599,16 @@ bool GltfReader::emit_mesh(int mesh, const glm::dmat4& world, RawInput& out,
         rp.primitive = uint32_t(k);
         const size_t nv = lp.positions.size() / 3;
         rp.vertices.resize(nv);
-        for (size_t i = 0; i < nv; ++i) {
-            const double* q = &lp.positions[3 * i];
-            const glm::dvec4 w = world * glm::dvec4(q[0], q[1], q[2], 1.0);
-            // Composition and transform in double; one final round to nearest
-            // float (identity transforms reproduce float input exactly).
-            rp.vertices[i] = {float(w.x), float(w.y), float(w.z)};
-        }
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, nv, kImportGrain), [&](const tbb::blocked_range<size_t>& r) {
+            for (size_t i = r.begin(); i != r.end(); ++i) {
+                const double* q = &lp.positions[3 * i];
+                const glm::dvec4 w = world * glm::dvec4(q[0], q[1], q[2], 1.0);
+                // Composition and transform in double; one final round to
+                // nearest float (identity transforms reproduce float input
+                // exactly). Per vertex: the same bits in parallel.
+                rp.vertices[i] = {float(w.x), float(w.y), float(w.z)};
+            }
+        });
         // The last node that names the mesh takes its triangles instead of a
         // copy; the cache entry is then reset, so that a further instance
         // (a node of several parents, permissive mode) decodes it again.
