@@ -2,7 +2,7 @@
 //
 //   Scene --build_sbvh--> BinaryBvh          (or any binary builder: build_embree)
 //         --collapse_wide--> WideBvh         (Ylitie et al. 2017, 3.1)
-//         --assign_slots-->                  (octant slots, auction: Bertsekas 1992)
+//         --assign_slots-->                  (octant slots: the auction's, Bertsekas 1992)
 //         --encode_scene--> EmitResult       (quantize.cpp, encode.cpp, encode_bvh2.cpp)
 //         --scene_sections / add_scene_sections--> Writer  (emit.cpp, format/)
 //
