@@ -1,7 +1,12 @@
 // Child slot assignment (Ylitie, Karras, Laine 2017, section 3.2, "octant-based
 // traversal order") solved with the forward auction algorithm of Bertsekas
 // (1992, "Auction algorithms for network flow problems: a tutorial
-// introduction", Comput. Optim. Appl. 1:7-66), with epsilon scaling.
+// introduction", Comput. Optim. Appl. 1:7-66), with epsilon scaling. Where
+// the children's optimal assignment is unique, slot_assign takes it from an
+// exact shortest-augmenting-path solve instead (Jonker and Volgenant 1987,
+// "A shortest augmenting path algorithm for dense and sparse linear
+// assignment problems", Computing 38): the same slots, since the auction's
+// result is optimal. Where optima tie, the auction's path decides.
 #include "cwbvh/compiler/auction.h"
 
 #include <cmath>
