@@ -289,7 +289,7 @@ bool GltfReader::byte_range(int buffer_view, size_t offset, size_t elem_size, si
 }
 
 /// Reads accessor `index` (of glTF `type` with `components` components) into
-/// `out` (count * components doubles), applying sparse substitution. For
+/// `out` (count * components values of type T), applying sparse substitution. For
 /// indices only unsigned byte/short/int are allowed, else float or (with
 /// KHR_mesh_quantization) 8/16-bit integers.
 template <class T>
