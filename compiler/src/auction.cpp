@@ -122,7 +122,7 @@ bool unique_max_benefit(const std::array<std::array<int64_t, 8>, 8>& benefit, ui
             }
             for (int j = 0; j <= n; ++j) {
                 const int64_t d = used[j] ? delta : 0;
-                u[person_of[j]] += d;  // person_of[j] of an unused j is never read as a row
+                u[person_of[j]] += d;  // d = 0 for an unused j (whatever person_of[j] holds)
                 v[j] -= d;
                 minv[j] -= used[j] ? 0 : delta;
             }

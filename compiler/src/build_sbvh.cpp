@@ -768,9 +768,10 @@ private:
         if (depth == 0) root_area_ = box.half_area();
         if (n == 2 && n < config_.min_spatial_refs) {
             // What the sweep decides for two references, without it: every
-            // axis costs A(first) + A(second) (the same sum in either order),
-            // so axis 0 keeps the split (a tie changes the axis only within
-            // one axis) and its first reference goes left.
+            // axis costs A(first) + A(second) (the same sum in either order,
+            // finite boxes), and sweep_sorted breaks an equal cost only within
+            // the axis that holds the best, so axis 0 keeps the split and its
+            // first reference (RefLess{0} order) goes left.
             object_splits_.fetch_add(1, std::memory_order_relaxed);
             const SmallSet ls{s.refs, {s.order[0], s.order[0], s.order[0]}, s.order[0], 1};
             const SmallSet rs{s.refs, {s.order[0] + 1, s.order[0] + 1, s.order[0] + 1}, s.order[0] + 1, 1};
