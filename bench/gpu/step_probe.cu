@@ -12,12 +12,15 @@ namespace probe {
 /// Empty frame: parameter loads and the final store, subtracted from the others.
 __global__ void probe_empty(const uint32_t* in, uint32_t* out) { out[threadIdx.x] = in[threadIdx.x]; }
 
-/// One CWBVH node step: load + visit_node (8 box tests, hit mask), for rays with
-/// no zero direction component.
-template <TriangleTest kTest>
-__global__ void probe_cwbvh_node(const CwbvhNode* nodes, const Ray* rays, uint32_t* out) {
-    CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x));
-    l.nray.zero_axes = 0;  // the common path: the exact zero-direction filter is compiled out
+/// One CWBVH node step: load + visit_node (8 box tests, hit mask). kFast: the
+/// common path, intersect_node_fast (rays that pass fast_node_test_applies);
+/// otherwise intersect_node_scalar for rays with no zero direction component (the
+/// exact zero-direction filter compiled out).
+template <TriangleTest kTest, bool kFast>
+__global__ void probe_cwbvh_node(const CwbvhNode* nodes, const Ray* rays, uint32_t* out, NodeScale scale) {
+    CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x), scale);
+    l.nray.zero_axes = 0;
+    l.nray.fast = kFast ? 1u : 0u;
     visit_node(l, gpu::load_node(nodes + out[threadIdx.x]));
     out[threadIdx.x] = l.node_group.hits ^ l.tri_group.hits ^ l.node_group.base ^ l.tri_group.base;
 }
@@ -33,9 +36,10 @@ __global__ void probe_triangle(const TriangleRecord* tris, const Ray* rays, uint
 
 /// Per-ray set-up (ray load, NodeRay, triangle-test constants).
 template <TriangleTest kTest>
-__global__ void probe_ray_setup(const Ray* rays, uint32_t* out) {
-    CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x));
-    out[threadIdx.x] = __float_as_uint(l.nray.rcp[0] + l.nray.rcp[1] + l.nray.rcp[2]) ^ l.nray.octinv;
+__global__ void probe_ray_setup(const Ray* rays, uint32_t* out, NodeScale scale) {
+    CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x), scale);
+    out[threadIdx.x] = __float_as_uint(l.nray.rcp[0] + l.nray.rcp[1] + l.nray.rcp[2] + l.nray.norcp[0] +
+                                       l.nray.norcp[1] + l.nray.norcp[2]) ^ l.nray.octinv ^ l.nray.one_bits;
 }
 
 /// One BVH2 node step: 64-byte load, two robust slab tests.
@@ -52,10 +56,13 @@ __global__ void probe_bvh2_node(const Bvh2Node* nodes, const Ray* rays, uint32_t
     out[threadIdx.x] = (h0 ? d.x : 0) ^ (h1 ? d.y : 0) ^ (t1 < t0);
 }
 
-template __global__ void probe_cwbvh_node<TriangleTest::kWatertight>(const CwbvhNode*, const Ray*, uint32_t*);
+template __global__ void probe_cwbvh_node<TriangleTest::kWatertight, true>(const CwbvhNode*, const Ray*, uint32_t*,
+                                                                        NodeScale);
+template __global__ void probe_cwbvh_node<TriangleTest::kWatertight, false>(const CwbvhNode*, const Ray*, uint32_t*,
+                                                                         NodeScale);
 template __global__ void probe_triangle<TriangleTest::kWatertight>(const TriangleRecord*, const Ray*, uint32_t*);
 template __global__ void probe_triangle<TriangleTest::kFast>(const TriangleRecord*, const Ray*, uint32_t*);
-template __global__ void probe_ray_setup<TriangleTest::kWatertight>(const Ray*, uint32_t*);
+template __global__ void probe_ray_setup<TriangleTest::kWatertight>(const Ray*, uint32_t*, NodeScale);
 
 }  // namespace probe
 }  // namespace cwbvh

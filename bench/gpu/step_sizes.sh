@@ -5,7 +5,11 @@
 # instructions: every probe also holds the per-ray set-up (probe_ray_setup: subtract
 # it), and the watertight triangle test includes its double-precision fallback, a
 # branch most tests never take, so its figure is an upper bound (the fast test's
-# is close to the watertight float path).
+# is close to the watertight float path). The node probe runs in two variants: the
+# kernel's common path (intersect_node_fast, node_intersect_fast.h) and the reference
+# arithmetic (intersect_node_scalar: rays the fast test does not accept). The last
+# lines give each step net of the set-up probe. Sizes come in multiples of 8
+# instructions (each kernel's code is padded to 128 bytes), so +-8.
 # usage: bench/gpu/step_sizes.sh [ARCH, default sm_90]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
@@ -24,8 +28,15 @@ for line in sys.stdin:
         rows.append((m.group(1)[len(".text."):], int(m.group(2), 16)))
 names = subprocess.run(["c++filt"], input="\n".join(n for n, _ in rows), capture_output=True, text=True).stdout.split("\n")
 empty = next(s for (n, s) in rows if "probe_empty" in n)
+net = {}
 for (n, s), d in zip(rows, names):
     if "probe_empty" in n:
         continue
     print(f"{d:75s} {(s - empty) // 16:5d} instructions")
+    net[d] = (s - empty) // 16
+setup = next(v for k, v in net.items() if "probe_ray_setup" in k)
+for k, v in net.items():
+    if "probe_cwbvh_node" in k:
+        which = "fast (common path)" if "true>" in k else "reference arithmetic"
+        print(f"node step, {which}, net of set-up: {v - setup} instructions")
 '

@@ -115,6 +115,7 @@ Expected<DeviceScene> DeviceScene::upload(const CwbvhNode* node_ptr, size_t node
         Stager* s = stager ? &*stager : nullptr;
         scene.nodes_ = alloc_and_copy(nodes, s, bytes);
         scene.node_count_ = uint32_t(nodes.size());
+        scene.node_scale_ = cwbvh::node_scale(nodes.data(), nodes.size());
         scene.tris_ = alloc_and_copy(triangles, s, bytes);
         scene.tri_count_ = uint32_t(triangles.size());
         scene.bvh2_ = alloc_and_copy(bvh2, s, bytes);
@@ -146,6 +147,7 @@ DeviceScene::DeviceScene(DeviceScene&& o) noexcept
       bvh2_count_(std::exchange(o.bvh2_count_, 0)),
       bvh2_leaf_ranges_(std::exchange(o.bvh2_leaf_ranges_, false)),
       device_(std::exchange(o.device_, -1)),
+      node_scale_(std::exchange(o.node_scale_, NodeScale{})),
       stats_(o.stats_) {}
 
 DeviceScene& DeviceScene::operator=(DeviceScene&& o) noexcept {
@@ -159,6 +161,7 @@ DeviceScene& DeviceScene::operator=(DeviceScene&& o) noexcept {
         bvh2_count_ = std::exchange(o.bvh2_count_, 0);
         bvh2_leaf_ranges_ = std::exchange(o.bvh2_leaf_ranges_, false);
         device_ = std::exchange(o.device_, -1);
+        node_scale_ = std::exchange(o.node_scale_, NodeScale{});
         stats_ = o.stats_;
     }
     return *this;
@@ -180,6 +183,7 @@ void DeviceScene::release() noexcept {
     bvh2_ = nullptr;
     node_count_ = tri_count_ = bvh2_count_ = 0;
     bvh2_leaf_ranges_ = false;
+    node_scale_ = NodeScale{};
 }
 
 }  // namespace cwbvh

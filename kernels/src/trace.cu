@@ -98,6 +98,7 @@ void launch(int structure, const DeviceScene& scene, const Ray* d_rays, Hit* d_h
             p.status = options.d_status ? options.d_status + first : nullptr;
             p.ray_count = count;
             p.work = work + b;
+            p.node_scale = scene.node_scale();
             uint32_t blocks = options.blocks ? options.blocks : persistent_blocks(device, k, counting);
             const uint32_t needed = (count + uint32_t(kernel.block_threads) - 1) / uint32_t(kernel.block_threads);
             blocks = std::min(blocks, needed);

@@ -46,9 +46,9 @@ template <TriangleTest kTest, HitMode kMode>
 class CwbvhWarp {
 public:
     CwbvhWarp(const CwbvhNode* nodes, size_t node_count, const TriangleRecord* tris, size_t tri_count,
-              const Ray* rays, Hit* hits, const WarpModelOptions& o, WarpModelStats& s)
+              const Ray* rays, Hit* hits, const NodeScale& scale, const WarpModelOptions& o, WarpModelStats& s)
         : nodes_(nodes), node_count_(uint32_t(node_count)), tris_(tris), tri_count_(uint32_t(tri_count)),
-          rays_(rays), hits_(hits), o_(o), s_(s) {
+          rays_(rays), hits_(hits), scale_(scale), o_(o), s_(s) {
         for (Lane& l : lanes_) {
             l.stack.shared_entries = o.shared_stack_entries;
             l.stack.stats = &s;
@@ -114,7 +114,7 @@ private:
                 ++s_.invalid_rays;
                 continue;
             }
-            lane.l = CwbvhLane<kTest>(ray);
+            lane.l = CwbvhLane<kTest>(ray, scale_);  // the kernel's node tests, fast path included
             lane.stack.clear();
             lane.active = true;
             lane_work += o_.refill_instructions;
@@ -205,6 +205,7 @@ private:
     uint32_t tri_count_;
     const Ray* rays_;
     Hit* hits_;
+    NodeScale scale_;
     const WarpModelOptions& o_;
     WarpModelStats& s_;
     Lane lanes_[kLanes];
@@ -244,8 +245,9 @@ template <TriangleTest kTest, HitMode kMode>
 WarpModelStats model_cwbvh(const CwbvhNode* nodes, size_t node_count, const TriangleRecord* tris, size_t tri_count,
                            const Ray* rays, Hit* hits, size_t ray_count, const WarpModelOptions& o) {
     using W = CwbvhWarp<kTest, kMode>;
+    const NodeScale scale = o.fast_node_test ? node_scale(nodes, node_count) : NodeScale{};  // as DeviceScene::upload
     return run_warps<W>(ray_count, o, [&](WarpModelStats& s) {
-        return W(nodes, node_count, tris, tri_count, rays, hits, o, s);
+        return W(nodes, node_count, tris, tri_count, rays, hits, scale, o, s);
     });
 }
 

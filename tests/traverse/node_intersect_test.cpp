@@ -6,6 +6,7 @@
 #include <random>
 
 #include "cwbvh/kernels/node_intersect.h"
+#include "cwbvh/kernels/node_intersect_fast.h"
 #include "cwbvh/oracle/oracle.h"
 
 namespace cwbvh::test {
@@ -114,8 +115,16 @@ float random_dir_component(Gen& g) {
     }
 }
 
-TEST(NodeIntersect, NeverMissesExactlyHitChild) {
-    Gen g(12345);
+// Which node test check_never_misses runs.
+enum class Which { kReference, kFast };
+
+// The contract on random nodes and rays aimed at a random child: every child whose
+// decoded box the exact segment touches has its bits set. kFast: intersect_node_fast
+// with the node's own NodeScale, on the rays fast_node_test_applies accepts (tmin -0
+// made +0 as the lane does); also rays with tmin > 0.
+void check_never_misses(Which which, uint64_t seed) {
+    Gen g(seed);
+    uint64_t fast_rays = 0, rays = 0, ref_extra = 0;  // ref_extra: the reference test's on the same rays
     uint64_t tested = 0, exact_hits = 0, misses = 0, extra = 0;
     for (int iter = 0; iter < 60000; ++iter) {
         const int k = g.coin(0.2) ? g.irange(-60, 60) : g.irange(-4, 4);
@@ -146,10 +155,22 @@ TEST(NodeIntersect, NeverMissesExactlyHitChild) {
             else r.org[a] = target[a] - dist * r.dir[a];  // rounded: passes near the target
         }
         r.tmin = g.coin(0.8) ? 0.0f : -dist;
+        if (which == Which::kFast && g.coin(0.3)) r.tmin = dist * g.uni(0.0f, 1.5f);  // the moved origin
         r.tmax = g.coin(0.6) ? INFINITY : (g.coin() ? 0.0f : dist * g.uni(0.5f, 2.0f));
         if (!ray_is_traceable(r)) continue;
-        const NodeRay nr = make_node_ray(r);
-        const uint32_t mask = intersect_node(n, nr, r.tmin, r.tmax);
+        ++rays;
+        NodeRay nr = make_node_ray(r);
+        uint32_t mask = 0, ref_mask = 0;
+        if (which == Which::kFast) {
+            ref_mask = intersect_node(n, nr, r.tmin, r.tmax);
+            const float tmin = r.tmin == 0.0f ? 0.0f : r.tmin;
+            enable_fast_node_test(nr, node_scale(&n, 1), r.dir, tmin);
+            if (!nr.fast) continue;
+            ++fast_rays;
+            mask = intersect_node_fast(n, nr, tmin, r.tmax);
+        } else {
+            mask = intersect_node(n, nr, r.tmin, r.tmax);
+        }
         for (int c = 0; c < 8; ++c) {
             if (n.meta[c] == 0) continue;
             float clo[3], chi[3];
@@ -170,13 +191,26 @@ TEST(NodeIntersect, NeverMissesExactlyHitChild) {
                                   << "," << r.dir[1] << "," << r.dir[2] << " tmin " << r.tmin << " tmax " << r.tmax;
             }
             if (!exact && got) ++extra;
+            if (!exact && (ref_mask & bit) != 0) ++ref_extra;
         }
     }
     EXPECT_EQ(misses, 0u);
+    if (which == Which::kFast) {
+        std::printf("fast node test: %llu of %llu rays take it; on them the reference test has %llu extras\n",
+                    (unsigned long long)fast_rays, (unsigned long long)rays, (unsigned long long)ref_extra);
+        EXPECT_GT(fast_rays, rays / 3);
+    }
     std::printf("node test: %llu child tests, %llu exact hits, %llu misses, %llu conservative extras (%.3f%%)\n",
                 (unsigned long long)tested, (unsigned long long)exact_hits, (unsigned long long)misses,
                 (unsigned long long)extra, 100.0 * double(extra) / double(tested));
     EXPECT_GT(exact_hits, tested / 10);
+}
+
+TEST(NodeIntersect, NeverMissesExactlyHitChild) { check_never_misses(Which::kReference, 12345); }
+
+TEST(NodeIntersect, FastTestNeverMissesExactlyHitChild) {
+    check_never_misses(Which::kFast, 12345);
+    check_never_misses(Which::kFast, 98765);
 }
 
 TEST(NodeIntersect, ScalarAndSimdAgreeBitForBit) {

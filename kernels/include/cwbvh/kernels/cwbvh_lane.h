@@ -28,6 +28,7 @@
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/hostdevice.h"
 #include "cwbvh/kernels/node_intersect.h"
+#include "cwbvh/kernels/node_intersect_fast.h"
 #include "cwbvh/kernels/ray.h"
 #include "cwbvh/kernels/traverse.h"
 #include "cwbvh/kernels/triangle_intersect.h"
@@ -48,15 +49,20 @@ struct CwbvhLane {
     StackEntry tri_group;
 
     /// Starts `ray` (which must be traceable) at the root: a node group of one
-    /// (bit 31, imask 0), as in traverse.h.
-    CWBVH_HD CWBVH_INLINE explicit CwbvhLane(const Ray& ray)
+    /// (bit 31, imask 0), as in traverse.h. With the scene's NodeScale, the node
+    /// steps use intersect_node_fast when the ray allows it (node_intersect_fast.h).
+    /// A tmin of -0 becomes +0 (the same closed interval; the fast test needs the
+    /// sign bit clear).
+    CWBVH_HD CWBVH_INLINE explicit CwbvhLane(const Ray& ray, const NodeScale& scale = NodeScale{})
         : nray(make_node_ray(ray)),
           tri_test(ray),
-          tmin(ray.tmin),
+          tmin(ray.tmin == 0.0f ? 0.0f : ray.tmin),
           tmax(ray.tmax),
           hit_tri(kNoTriangle),
           node_group{0u, 0x80000000u},
-          tri_group{0u, 0u} {}
+          tri_group{0u, 0u} {
+        enable_fast_node_test(nray, scale, ray.dir, tmin);
+    }
 
     CWBVH_HD CWBVH_INLINE bool has_node_work() const { return node_group.hits > 0x00FFFFFFu; }
     CWBVH_HD CWBVH_INLINE bool wants_triangles() const { return tri_group.hits != 0; }
@@ -95,7 +101,14 @@ CWBVH_HD CWBVH_INLINE NodeStep next_node(CwbvhLane<kTest>& l, Stack& stack, uint
 /// its hit children the new node and triangle groups.
 template <TriangleTest kTest>
 CWBVH_HD CWBVH_INLINE void visit_node(CwbvhLane<kTest>& l, const CwbvhNode& node) {
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 900
+    // Before sm_90 the three-input integer min/max of the fast test are emulated
+    // (several instructions each) and the kernel would spill (sm_75): reference arithmetic.
     const uint32_t hitmask = intersect_node(node, l.nray, l.tmin, l.tmax);
+#else
+    const uint32_t hitmask = l.nray.fast ? intersect_node_fast(node, l.nray, l.tmin, l.tmax)
+                                         : intersect_node(node, l.nray, l.tmin, l.tmax);
+#endif
     l.node_group = StackEntry{node.child_base, (hitmask & 0xFF000000u) | node.imask};
     l.tri_group = StackEntry{node.tri_base, hitmask & 0x00FFFFFFu};
 }

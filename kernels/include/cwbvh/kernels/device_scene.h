@@ -25,6 +25,7 @@
 
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/status.h"
+#include "cwbvh/kernels/node_intersect_fast.h"
 
 namespace cwbvh {
 
@@ -81,6 +82,8 @@ public:
     uint64_t triangle_bytes() const { return uint64_t(tri_count_) * sizeof(TriangleRecord); }
     uint64_t bvh2_bytes() const { return uint64_t(bvh2_count_) * sizeof(Bvh2Node); }
     int device() const { return device_; }
+    /// Scene constants of the CWBVH kernel's fast node test (node_scale() over NODE at upload).
+    const NodeScale& node_scale() const { return node_scale_; }
     const UploadStats& upload_stats() const { return stats_; }
     bool empty() const { return nodes_ == nullptr; }
 
@@ -93,6 +96,7 @@ private:
     uint32_t node_count_ = 0, tri_count_ = 0, bvh2_count_ = 0;
     bool bvh2_leaf_ranges_ = false;
     int device_ = -1;
+    NodeScale node_scale_{};
     UploadStats stats_;
 };
 

@@ -17,6 +17,7 @@
 #include <cstring>
 
 #include "cwbvh/format/format.h"
+#include "cwbvh/kernels/node_intersect_fast.h"
 #include "cwbvh/kernels/ray.h"
 #include "cwbvh/kernels/traverse.h"
 
@@ -51,6 +52,7 @@ struct LaunchParams {
     TraceStatus* status;  // may be null
     uint32_t ray_count;
     WorkArea* work;
+    NodeScale node_scale;  ///< the CWBVH kernel's fast node test (DeviceScene::node_scale)
 };
 
 // ---------------------------------------------------------------------------

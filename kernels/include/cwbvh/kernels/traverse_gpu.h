@@ -110,7 +110,7 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                         if (p.status) p.status[id] = TraceStatus::kInvalidRay;
                         count_rare(&p.work->invalid);
                     } else {
-                        l = CwbvhLane<kTest>(ray);
+                        l = CwbvhLane<kTest>(ray, p.node_scale);
                         stack.clear();
                         active = true;
                     }

@@ -56,6 +56,10 @@ struct WarpModelOptions {
     TriangleTest test = TriangleTest::kWatertight;
     uint32_t warps = 1024;                    ///< resident warps sharing the ray counter
     bool postpone = true;                     ///< triangle postponing on/off
+    /// The kernel's fast node test where a ray allows it (intersect_node_fast, with the
+    /// scene's node_scale); false: intersect_node everywhere, i.e. traverse.h's node
+    /// masks, so that without postponing every lane does the reference's work step for step.
+    bool fast_node_test = true;
     int postpone_percent = kPostponePercent;  ///< postpone below this % of active lanes
     /// Postpone only lanes that have node work meanwhile (the rule before issue 10);
     /// false: any wanting lane postpones (the kernel's rule, gpu_stack.h).
@@ -76,8 +80,9 @@ struct WarpModelOptions {
     // these weights the BVH2 2009 model predicts 9.4 for the 9.5 measured there.
     // Control code (votes, pops) is left out: a few instructions per iteration.
     // These defaults describe the kernel as measured (issue 10's H100 run); the node
-    // step of today's kernel is 344 by the same probe (fminf/fmaxf, byte-parallel
-    // meta decode): `cwbvh model --node-instructions 344`.
+    // step of today's kernel is 224 by the same probe on its common path
+    // (intersect_node_fast; 376 with the reference arithmetic, which rays the fast
+    // test does not accept take): `cwbvh model --node-instructions 224`.
     double node_instructions = 440;      ///< one CWBVH node step (load, 8 box tests, hit mask)
     double tri_instructions = 92;        ///< one triangle test (load, test)
     double control_instructions = 0;     ///< per iteration, all 32 lanes
