@@ -147,6 +147,7 @@ private:
             const NodeStep step = next_node(lane.l, lane.stack, node_count_, index);
             if (step == NodeStep::kVisit) {
                 ++visiting;
+                s_.lane_fast_node_steps += lane.l.nray.fast;
                 visit_node(lane.l, nodes_[index]);
             } else if (step == NodeStep::kOverflow) {
                 finish(lane, TraceStatus::kStackOverflow);

@@ -126,6 +126,9 @@ int run_model(int argc, char** argv) {
     std::printf("rays             %llu (hits %llu, invalid %llu)\n", (unsigned long long)s.rays,
                 (unsigned long long)s.hits, (unsigned long long)s.invalid_rays);
     std::printf("nodes/ray        %.2f\n", double(s.lane_node_steps) / n);
+    if (s.lane_node_steps != 0)
+        std::printf("fast node steps  %.2f%% (intersect_node_fast; the rest: intersect_node)\n",
+                    100.0 * double(s.lane_fast_node_steps) / double(s.lane_node_steps));
     std::printf("triangles/ray    %.2f\n", double(s.lane_tri_tests) / n);
     std::printf("lanes/node step  %.2f\n", s.lanes_per_node_step());
     std::printf("lanes/tri step   %.2f\n", s.lanes_per_tri_step());

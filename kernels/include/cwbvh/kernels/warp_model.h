@@ -93,6 +93,7 @@ struct WarpModelOptions {
 struct WarpModelStats {
     uint64_t rays = 0, hits = 0;
     uint64_t lane_node_steps = 0;   ///< nodes visited, summed over lanes
+    uint64_t lane_fast_node_steps = 0;  ///< of which with intersect_node_fast (fast_node_test)
     uint64_t lane_tri_tests = 0;    ///< triangles tested, summed over lanes
     uint64_t warp_node_steps = 0;   ///< warp-level node phases issued (>= 1 lane active)
     uint64_t warp_tri_steps = 0;    ///< warp-level triangle rounds issued
