@@ -34,6 +34,23 @@ __global__ void probe_triangle(const TriangleRecord* tris, const Ray* rays, uint
     out[threadIdx.x] = l.hit_tri ^ __float_as_uint(l.tmax);
 }
 
+/// The watertight test's first stage (load, shear, edge functions, sign test): all a
+/// triangle test runs when the edge signs are mixed (a miss), i.e. on most tests.
+__global__ void probe_triangle_edges(const TriangleRecord* tris, const Ray* rays, uint32_t* out) {
+    CwbvhLane<TriangleTest::kWatertight> l(gpu::load_ray(rays + threadIdx.x));
+    const TriangleRecord t = gpu::load_triangle(tris + out[threadIdx.x]);
+    WatertightEdges e;
+    const bool pass = watertight_edges(l.tri_test.w, t.v0, t.v1, t.v2, e);
+    out[threadIdx.x] = pass ? __float_as_uint(e.eu + e.ev + e.ew) : 0u;
+}
+
+/// The watertight test's per-ray set-up alone (ray load, shear constants): subtracted
+/// from the triangle probes, which hold it too.
+__global__ void probe_triangle_setup(const Ray* rays, uint32_t* out) {
+    const WatertightRay w = make_watertight_ray(gpu::load_ray(rays + threadIdx.x));
+    out[threadIdx.x] = __float_as_uint(w.ox + w.oy + w.oz + w.dx + w.dy + w.dz + w.sx + w.sy) ^ w.k;
+}
+
 /// Per-ray set-up (ray load, NodeRay, triangle-test constants).
 template <TriangleTest kTest>
 __global__ void probe_ray_setup(const Ray* rays, uint32_t* out, NodeScale scale) {

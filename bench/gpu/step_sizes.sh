@@ -35,6 +35,12 @@ for (n, s), d in zip(rows, names):
     print(f"{d:75s} {(s - empty) // 16:5d} instructions")
     net[d] = (s - empty) // 16
 setup = next(v for k, v in net.items() if "probe_ray_setup" in k)
+tri_setup = next(v for k, v in net.items() if "probe_triangle_setup" in k)
+for k, v in net.items():
+    if "probe_triangle_edges" in k:
+        print(f"watertight triangle test, first stage (decides the misses), net of set-up: {v - tri_setup} instructions")
+    elif "probe_triangle<(cwbvh::TriangleTest)0>" in k:
+        print(f"watertight triangle test, whole (hit path, double fallbacks included), net of set-up: {v - tri_setup} instructions")
 for k, v in net.items():
     if "probe_cwbvh_node" in k:
         which = "fast (common path)" if "true>" in k else "reference arithmetic"

@@ -116,9 +116,16 @@ CWBVH_HD CWBVH_INLINE bool plane_t(const WatertightRay& w, const float* v0, cons
 /// exact and one rounding keeps the sign. So every edge sign is exact for the sheared
 /// vertices, and a ray through an edge or vertex hits at least one of the triangles
 /// sharing it.
-CWBVH_HD CWBVH_INLINE bool intersect_triangle_watertight(const WatertightRay& w, const float* v0,
-                                                         const float* v1, const float* v2,
-                                                         float tmin, float tmax, TriangleHit& out) {
+/// The watertight test's first stage, which decides most misses: the vertices
+/// relative to the origin, sheared, and the three edge functions in float. Returns
+/// false when the edge signs are mixed (exact: a miss); otherwise the caller goes on
+/// with the hit distance. (Split out so that bench/gpu/step_probe.cu can size it.)
+struct WatertightEdges {
+    float ax, ay, bx, by, cx, cy;  ///< sheared x, y of the vertices
+    float eu, ev, ew;              ///< edge functions (scaled barycentrics)
+};
+CWBVH_HD CWBVH_INLINE bool watertight_edges(const WatertightRay& w, const float* v0, const float* v1,
+                                            const float* v2, WatertightEdges& e) {
     // Vertices relative to the origin, then sheared.
     const float a_kx = sub_rn(pick3(v0, w.kx()), w.ox), a_ky = sub_rn(pick3(v0, w.ky()), w.oy);
     const float a_kz = sub_rn(pick3(v0, w.kz()), w.oz);
@@ -126,16 +133,28 @@ CWBVH_HD CWBVH_INLINE bool intersect_triangle_watertight(const WatertightRay& w,
     const float b_kz = sub_rn(pick3(v1, w.kz()), w.oz);
     const float c_kx = sub_rn(pick3(v2, w.kx()), w.ox), c_ky = sub_rn(pick3(v2, w.ky()), w.oy);
     const float c_kz = sub_rn(pick3(v2, w.kz()), w.oz);
-    const float ax = sub_rn(a_kx, mul_rn(w.sx, a_kz)), ay = sub_rn(a_ky, mul_rn(w.sy, a_kz));
-    const float bx = sub_rn(b_kx, mul_rn(w.sx, b_kz)), by = sub_rn(b_ky, mul_rn(w.sy, b_kz));
-    const float cx = sub_rn(c_kx, mul_rn(w.sx, c_kz)), cy = sub_rn(c_ky, mul_rn(w.sy, c_kz));
+    e.ax = sub_rn(a_kx, mul_rn(w.sx, a_kz));
+    e.ay = sub_rn(a_ky, mul_rn(w.sy, a_kz));
+    e.bx = sub_rn(b_kx, mul_rn(w.sx, b_kz));
+    e.by = sub_rn(b_ky, mul_rn(w.sy, b_kz));
+    e.cx = sub_rn(c_kx, mul_rn(w.sx, c_kz));
+    e.cy = sub_rn(c_ky, mul_rn(w.sy, c_kz));
 
     // Scaled barycentrics (edge functions).
-    float eu = sub_rn(mul_rn(cx, by), mul_rn(cy, bx));
-    float ev = sub_rn(mul_rn(ax, cy), mul_rn(ay, cx));
-    float ew = sub_rn(mul_rn(bx, ay), mul_rn(by, ax));
+    e.eu = sub_rn(mul_rn(e.cx, e.by), mul_rn(e.cy, e.bx));
+    e.ev = sub_rn(mul_rn(e.ax, e.cy), mul_rn(e.ay, e.cx));
+    e.ew = sub_rn(mul_rn(e.bx, e.ay), mul_rn(e.by, e.ax));
     // Exact-sign early out (NaN from inf-inf fails both comparisons and goes on).
-    if ((eu < 0.0f || ev < 0.0f || ew < 0.0f) && (eu > 0.0f || ev > 0.0f || ew > 0.0f)) return false;
+    return !((e.eu < 0.0f || e.ev < 0.0f || e.ew < 0.0f) && (e.eu > 0.0f || e.ev > 0.0f || e.ew > 0.0f));
+}
+
+CWBVH_HD CWBVH_INLINE bool intersect_triangle_watertight(const WatertightRay& w, const float* v0,
+                                                         const float* v1, const float* v2,
+                                                         float tmin, float tmax, TriangleHit& out) {
+    WatertightEdges e;
+    if (!watertight_edges(w, v0, v1, v2, e)) return false;
+    const float ax = e.ax, ay = e.ay, bx = e.bx, by = e.by, cx = e.cx, cy = e.cy;
+    const float eu = e.eu, ev = e.ev, ew = e.ew;
 
     // t: plane_t. tmin <= RN_f32(t) iff tmin <= t for float tmin (monotone
     // rounding): the range is tested in double, then t is rounded.
