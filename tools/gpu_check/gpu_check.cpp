@@ -52,6 +52,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -357,10 +358,16 @@ bool write_csv(const std::string& path, const std::vector<Row>& rows, const std:
 bool read_compile_times(const std::string& path, std::map<std::string, double>& out) {
     std::ifstream f(path);
     if (!f) return false;
-    std::string name;
-    double sec = 0;
-    while (f >> name >> sec) out[name] = sec;
-    return f.eof();
+    std::string line;
+    while (std::getline(f, line)) {
+        std::istringstream in(line);
+        std::string name, rest;
+        double sec = 0;
+        if (!(in >> name)) continue;  // blank line
+        if (!(in >> sec) || in >> rest || !(sec >= 0)) return false;
+        out[name] = sec;
+    }
+    return true;
 }
 
 }  // namespace
@@ -499,7 +506,8 @@ int main(int argc, char** argv) {
             std::printf("optix: skipped: --no-optix\n");
         }
 #else
-        if (have_gpu) std::printf("optix: skipped: built without the OptiX headers (-DCWBVH_OPTIX_INCLUDE_DIR)\n");
+        if (have_gpu) std::printf("optix: skipped: built without the OptiX 9.0 headers (-DCWBVH_OPTIX_INCLUDE_DIR; "
+                                  "scripts/gpu-check.sh: gpu_inputs/optix/include)\n");
         (void)no_optix;
 #endif
         std::printf("rays: %dx%d per view, diffuse bounces 1-%d (paths end when they escape), seed %u, "
@@ -658,6 +666,7 @@ int main(int argc, char** argv) {
         return 2;
     }
     if (!have_gpu) {
+        print_scene_table(scenes);  // the compile side (no GAS columns without a GPU)
         std::printf("CPU-only run done (%s)%s\n", why.empty() ? "--cpu-only" : why.c_str(),
                     failed ? ": CPU closest/any-hit disagreement" : "");
         return failed ? 1 : 0;
