@@ -28,12 +28,15 @@ extern "C" __global__ void __raygen__trace() {
         unsigned int p0 = __float_as_uint(h.t), p1 = 0u, p2 = 0u, p3 = cwbvh::kMissPrim;
         // OptiX traces t in [tmin, tmax] with tmin >= 0: every ray the benchmark makes
         // (camera rays, diffuse bounces) starts at t >= 0, so the clamp changes none of them.
+        // tmax: kept finite, as OptiX's SDK samples keep it (1e16f there): +inf (our camera
+        // rays) becomes 1e30, beyond any hit in these scenes (extents below 1e6).
         const float tmin = fmaxf(r.tmin, 0.0f);
+        const float tmax = fminf(r.tmax, 1e30f);
         const unsigned int flags = params.any ? (OPTIX_RAY_FLAG_DISABLE_ANYHIT | OPTIX_RAY_FLAG_TERMINATE_ON_FIRST_HIT)
                                               : OPTIX_RAY_FLAG_DISABLE_ANYHIT;
-        if (tmin <= r.tmax)
+        if (tmin <= tmax)
             optixTrace(params.gas, make_float3(r.org[0], r.org[1], r.org[2]),
-                       make_float3(r.dir[0], r.dir[1], r.dir[2]), tmin, r.tmax, 0.0f, OptixVisibilityMask(255), flags,
+                       make_float3(r.dir[0], r.dir[1], r.dir[2]), tmin, tmax, 0.0f, OptixVisibilityMask(255), flags,
                        0u, 1u, 0u, p0, p1, p2, p3);
         h = Hit{__uint_as_float(p0), __uint_as_float(p1), __uint_as_float(p2), p3};
     }
