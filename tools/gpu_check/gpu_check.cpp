@@ -536,8 +536,18 @@ int main(int argc, char** argv) {
                 if (!ds->has_bvh2())
                     std::printf("%s: no BVH2 section (compile with --keep-sbvh): CWBVH kernel only\n", s.name.c_str());
 #ifdef CWBVH_HAVE_OPTIX
+                OptixGasInfo gi;
                 if (optix) {
-                    const OptixGasInfo gi = optix->build(s.tris.data(), s.tris.size());
+                    try {
+                        gi = optix->build(s.tris.data(), s.tris.size());
+                    } catch (const CudaError&) {
+                        throw;  // the device may be unusable now: fail as any CUDA error does
+                    } catch (const std::exception& e) {  // OptiX's own error: our check goes on
+                        std::printf("optix: stopped (%s: GAS build): %s\n", s.name.c_str(), e.what());
+                        optix.reset();
+                    }
+                }
+                if (optix) {
                     s.gas = true;
                     s.gas_bytes = gi.gas_bytes;
                     s.gas_build_ms = gi.build_ms;
@@ -600,15 +610,27 @@ int main(int argc, char** argv) {
                         for (int any = 0; any < 2; ++any) {
                             Row& r = rows[rows.size() - 2 + size_t(any)];
 #ifdef CWBVH_HAVE_OPTIX
+                            std::vector<Hit> ox_hits;
+                            double ox_ms = 0;
                             if (optix) {
-                                std::vector<Hit> hits;
-                                const double ms =
-                                    run_optix(*optix, d_rays.p, d_hits.p, rays.size(), any != 0, repeat, hits);
-                                const HitCompare c = compare_hits(hits, any ? ref_any : ref, any != 0, kOptixUlpBound);
+                                try {
+                                    ox_ms = run_optix(*optix, d_rays.p, d_hits.p, rays.size(), any != 0, repeat,
+                                                      ox_hits);
+                                } catch (const CudaError&) {
+                                    throw;
+                                } catch (const std::exception& e) {
+                                    std::printf("optix: stopped (%s %s %s): %s\n", s.name.c_str(), view.name.c_str(),
+                                                kind_name(bounce), e.what());
+                                    optix.reset();
+                                }
+                            }
+                            if (optix) {
+                                const HitCompare c =
+                                    compare_hits(ox_hits, any ? ref_any : ref, any != 0, kOptixUlpBound);
                                 KernelResult& kr = r.k[kOx];
                                 kr.ran = true;
-                                kr.ms = ms;
-                                kr.mrays = ms > 0 ? double(rays.size()) / (ms * 1e3) : 0.0;
+                                kr.ms = ox_ms;
+                                kr.mrays = ox_ms > 0 ? double(rays.size()) / (ox_ms * 1e3) : 0.0;
                                 kr.mismatches = c.mismatches;
                                 kr.hit_vs_miss = c.hit_vs_miss;
                                 kr.ties = c.ties;
