@@ -116,7 +116,8 @@ if [[ -f "$inputs/scenes/LIST" ]]; then
     if command -v xz >/dev/null; then
       tar -C "$build" -xJf "$inputs/cwbvhc-bundle.tar.xz"
     else
-      python3 -c 'import sys, tarfile; tarfile.open(sys.argv[1], "r:xz").extractall(sys.argv[2])' \
+      python3 -c 'import sys, tarfile; kw = {"filter": "tar"} if hasattr(tarfile, "tar_filter") else {}
+tarfile.open(sys.argv[1], "r:xz").extractall(sys.argv[2], **kw)' \
         "$inputs/cwbvhc-bundle.tar.xz" "$build"
     fi
   fi

@@ -18,7 +18,7 @@
 # composite derived_board_dragons (12.65M), which gpu-check.sh generates there with
 # scripts/make-derived-composite.py from dragon, dragon_loop1_draco and kicad_board
 # (so nothing of it travels but the generator). Scene stems are the view catalog's keys.
-# About 28 MiB in all (the bundle 11.4, the scenes 15); files are added in order while
+# About 27 MiB in all (the bundle 11.4, the scenes 14.3, the OptiX headers 0.6); files are added in order while
 # the total stays under CWBVH_GPU_INPUTS_MIB (default 56).
 #
 # usage: scripts/make-gpu-inputs.sh [SCENE...]   (default: the set above, from
