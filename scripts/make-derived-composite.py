@@ -190,6 +190,9 @@ def main():
             c, sn = math.cos(yaw), math.sin(yaw)
             t = (px - (c * vx - sn * vy), py - (sn * vx + c * vy), -vz)
             q = qmul((0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)), up)
+            # Rounded, so that a libm whose sin/cos differ in the last bit (glibc 2.36 here,
+            # 2.39 on the GPU machine) still writes the same file.
+            t, q, s = [round(x, 6) for x in t], [round(x, 12) for x in q], round(s, 6)
             b.place(os.path.join(src, name), translation=t, rotation=q, scale=s, label=f"{name}#{k}")
             placements.append(f"{name} scale {s:.1f} yaw {math.degrees(yaw):.1f} at ({px:.1f}, {py:.1f})")
     note = ("DERIVED composite (not a real scene): kicad_board (COMPOSITE of KiCad parts) as the ground, "

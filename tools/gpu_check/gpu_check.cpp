@@ -373,6 +373,9 @@ bool read_compile_times(const std::string& path, std::map<std::string, double>& 
 }  // namespace
 
 int main(int argc, char** argv) {
+    // Line-buffered even into a pipe or file (gpu-check.sh tees it): a run cut off by the
+    // device tool's time limit still leaves every line it printed.
+    std::setvbuf(stdout, nullptr, _IOLBF, 0);
     int width = 2048, height = 2048, repeat = 5;
     bool cpu_only = false, no_optix = false;
     std::string views_path, csv_path, compile_times_path;
