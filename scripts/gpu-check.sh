@@ -21,10 +21,9 @@
 # Rays come from the view catalog (views/catalog.txt: every view of each scene, inside the
 # enclosed ones; scene key = the .cwbvh file's stem), 2048x2048, primary + diffuse bounces 1-4.
 # Ray sets of fewer than 1M rays are printed but kept out of the geometric means.
-# Time on the 16-core GPU machine, all nine scenes: about 6 minutes (build, compile,
-# CPU reference, --repeat 3 on the three kernels, sanitizer); the CPU reference of the
-# big scenes dominates, so keep --repeat at 3 there and the size at 2048x2048
-# (bench/README.md, "GPU: the three-way benchmark").
+# Time on the 16-core GPU machine, all nine scenes: 4-5 minutes expected (build, compile,
+# CPU reference, --repeat 3 on the three kernels, sanitizer; estimated from the CPU side
+# here, bench/README.md, "GPU: the three-way benchmark"): every scene keeps 2048x2048.
 #
 # usage: scripts/gpu-check.sh [extra cwbvh_gpu_check args, e.g. --width 1024 --height 1024 --repeat 9]
 # env:   BUILD=build-gpu  ARCH=(CMAKE_CUDA_ARCHITECTURES, default: the project's 75/90 set)
