@@ -218,14 +218,14 @@ std::string fmt(bool ok, const char* f, double v) {
 }
 
 void print_table(const std::vector<Row>& rows) {
-    std::printf("\n%-18s %-10s %-9s %-7s %10s %7s | %8s %8s %8s %7s %7s | %6s %6s %6s %6s | %6s %6s %6s %5s %5s\n",
+    std::printf("\n%-21s %-10s %-9s %-7s %10s %7s | %8s %8s %8s %7s %7s | %6s %6s %6s %6s | %6s %6s %6s %5s %5s\n",
                 "scene", "view", "rays", "query", "count", "hit%", "CW Mr/s", "B2 Mr/s", "OX Mr/s", "CW/B2", "CW/OX",
                 "CW n/r", "CW t/r", "B2 n/r", "B2 t/r", "CW mis", "B2 mis", "OX mis", "ties", "ovfl");
     bool small = false;
     for (const Row& r : rows) {
         const KernelResult &c = r.k[kCw], &b = r.k[kB2], &o = r.k[kOx];
         small = small || !r.in_means();
-        std::printf("%-18s %-10s %-9s %-7s %9zu%c %6.1f%% | %8.1f %8s %8s %7s %7s | %6.1f %6.1f %6s %6s | %6llu %6s "
+        std::printf("%-21s %-10s %-9s %-7s %9zu%c %6.1f%% | %8.1f %8s %8s %7s %7s | %6.1f %6.1f %6s %6s | %6llu %6s "
                     "%6s %5llu %5llu\n",
                     r.scene.c_str(), r.view.c_str(), r.rays_kind.c_str(), r.query.c_str(), r.rays,
                     r.in_means() ? ' ' : '*', r.rays ? 100.0 * double(r.cpu_hits) / double(r.rays) : 0.0, c.mrays,
@@ -245,12 +245,12 @@ void print_table(const std::vector<Row>& rows) {
 
 /// Per scene: our file and its compile time beside OptiX's GAS and its build time.
 void print_scene_table(const std::vector<Scene>& scenes) {
-    std::printf("\n%-18s %10s | %9s %10s %7s | %9s %8s %8s %8s\n", "scene", "triangles", "file MiB", "compile s",
+    std::printf("\n%-21s %10s | %9s %10s %7s | %9s %8s %8s %8s\n", "scene", "triangles", "file MiB", "compile s",
                 "CW B/t", "GAS MiB", "GAS B/t", "build ms", "cmpct ms");
     for (const Scene& s : scenes) {
         const double tri = double(std::max<uint64_t>(s.triangles, 1));
         const double cw_dev = double(s.nodes.size() * sizeof(CwbvhNode) + s.tris.size() * sizeof(TriangleRecord));
-        std::printf("%-18s %10llu | %9.1f %10s %7.1f | %9s %8s %8s %8s\n", s.name.c_str(),
+        std::printf("%-21s %10llu | %9.1f %10s %7.1f | %9s %8s %8s %8s\n", s.name.c_str(),
                     (unsigned long long)s.triangles, double(s.file_bytes) / 1048576.0,
                     fmt(s.compile_s >= 0, "%.2f", s.compile_s).c_str(), cw_dev / tri,
                     fmt(s.gas, "%.1f", double(s.gas_bytes) / 1048576.0).c_str(),
