@@ -1,15 +1,29 @@
 #!/usr/bin/env bash
 # The whole GPU check + benchmark in one call, for a GPU machine with only the CUDA
-# toolkit, cmake and a C++ compiler (no Debian packages, no GoogleTest): configures a
-# GPU-only build (format, loader, kernels, tools, cwbvh_gpu_check) against
-# gpu_inputs/xxhash, saves ptxas -v for the device's arch, runs the check and the
-# benchmark on every gpu_inputs/*.cwbvh (synthetic scene if none), prints the table
-# last. Prepare gpu_inputs/ first with scripts/make-gpu-inputs.sh (on a machine with
-# the compiler's dependencies; scenes travel as .cwbvh.xz and are unpacked here; with the
-# device tool: carry ["gpu_inputs"]).
+# toolkit, cmake, a C++ compiler and Python 3 (no Debian packages, no GoogleTest, no
+# network): configures a GPU-only build (format, loader, kernels, tools,
+# cwbvh_gpu_check, and the OptiX peer when gpu_inputs/optix/include has the headers)
+# against gpu_inputs/xxhash, saves ptxas -v for the device's arch, compiles the scenes
+# there, runs the check and the benchmark, prints the tables last. Prepare gpu_inputs/
+# first with scripts/make-gpu-inputs.sh (on a machine with the compiler's dependencies;
+# with the device tool: carry ["gpu_inputs"]).
+#
+# Scenes: the sources in gpu_inputs/scenes (NAME.glb.xz ..., in the order of
+# gpu_inputs/scenes/LIST) are unpacked and compiled by the bundled cwbvhc
+# (gpu_inputs/cwbvhc-bundle.tar.xz: its own loader and libraries, nothing of the host's)
+# with --keep-sbvh at $COMPILE_THREADS threads (default: all cores); each compile's wall
+# time is printed and shown in the scene table beside OptiX's GAS build. Where
+# dragon.glb, dragon_loop1_draco.glb and kicad_board.glb are among them, the DERIVED
+# composite derived_board_dragons (12.65M triangles) is generated first
+# (scripts/make-derived-composite.py) and compiled and checked last. Compiled scenes of
+# the earlier layout (gpu_inputs/NAME.cwbvh.xz) are still unpacked and checked.
 #
 # Rays come from the view catalog (views/catalog.txt: every view of each scene, inside the
 # enclosed ones; scene key = the .cwbvh file's stem), 2048x2048, primary + diffuse bounces 1-4.
+# Ray sets of fewer than 1M rays are printed but kept out of the geometric means.
+# Time on the 16-core GPU machine, all nine scenes: 4-5 minutes expected (build, compile,
+# CPU reference, --repeat 3 on the three kernels, sanitizer; estimated from the CPU side
+# here, bench/README.md, "GPU: the three-way benchmark"): every scene keeps 2048x2048.
 #
 # usage: scripts/gpu-check.sh [extra cwbvh_gpu_check args, e.g. --width 1024 --height 1024 --repeat 9]
 # env:   BUILD=build-gpu  ARCH=(CMAKE_CUDA_ARCHITECTURES, default: the project's 75/90 set)
@@ -17,11 +31,15 @@
 #        80 registers; 8 = 64): register/occupancy experiments, use a separate BUILD folder
 #        CSV=path of the results table (default $BUILD/gpu_check.csv; commit a copy under
 #        bench/results/gpu/ with the command and the device)
+#        COMPILE_THREADS=N cwbvhc threads (default: nproc)
+#        OPTIX_INCLUDE_DIR=OptiX 9.0 headers (default gpu_inputs/optix/include); none: OptiX
+#        is skipped with one line (as it is where libnvoptix is missing)
 #        CWBVH_SANITIZE_GPU=0 skips the compute-sanitizer memcheck + racecheck pass (run last,
-#        64x64 rays on the bunny or the synthetic scene; any report fails the check)
+#        64x64 rays on the bunny or the synthetic scene, CWBVH and BVH2 kernels; any report
+#        fails the check)
 # exit:  0 only when cwbvh_gpu_check printed "RESULT: PASS". 1 a mismatch (or no PASS line);
-#        2 a build, usage or CUDA error, or "SKIPPED" although nvidia-smi lists a GPU (the
-#        kernels did not run where they should); 3 no GPU on this machine (nothing checked).
+#        2 a build, usage, compile or CUDA error, or "SKIPPED" although nvidia-smi lists a GPU
+#        (the kernels did not run where they should); 3 no GPU on this machine (nothing checked).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${BUILD:-$root/build-gpu}
@@ -34,16 +52,25 @@ command -v ninja >/dev/null && gen=(-G Ninja)
 arch_args=()
 [[ -n "${ARCH:-}" ]] && arch_args=(-DCMAKE_CUDA_ARCHITECTURES="$ARCH")
 [[ -n "${MIN_BLOCKS:-}" ]] && arch_args+=(-DCWBVH_CWBVH_MIN_BLOCKS="$MIN_BLOCKS")
+cc=$(nvidia-smi --query-gpu=compute_cap --format=csv,noheader 2>/dev/null | head -1 | tr -d . || true)
+# The OptiX peer: on when the headers are there (its IR for this device's architecture).
+optix_inc=${OPTIX_INCLUDE_DIR:-$inputs/optix/include}
+if [[ -f "$optix_inc/optix.h" ]]; then
+  arch_args+=(-DCWBVH_OPTIX_INCLUDE_DIR="$optix_inc" -DCWBVH_OPTIX_ARCH="${cc:-90}")
+  targets=(cwbvh_gpu_check cwbvh cwbvh_optix_trace)
+else  # cwbvh_gpu_check then says, in one line, that OptiX was skipped
+  arch_args+=(-DCWBVH_OPTIX_INCLUDE_DIR=)
+  targets=(cwbvh_gpu_check cwbvh)
+fi
 cmake -S "$root" -B "$build" "${gen[@]}" -DCMAKE_BUILD_TYPE=Release -DCWBVH_BUILD_COMPILER=OFF \
   -DCWBVH_BUILD_TESTS=OFF -DCWBVH_CUDA=ON -DCMAKE_CUDA_COMPILER="$nvcc" \
   -DCWBVH_XXHASH_INCLUDE_DIR="$xx" "${arch_args[@]}" > "$build.configure.log" 2>&1 ||
   { cat "$build.configure.log"; exit 2; }
-cmake --build "$build" -j "$(nproc)" --target cwbvh_gpu_check cwbvh > "$build.build.log" 2>&1 ||
+cmake --build "$build" -j "$(nproc)" --target "${targets[@]}" > "$build.build.log" 2>&1 ||
   { tail -40 "$build.build.log"; exit 2; }
 tail -2 "$build.build.log"
 
 # ptxas report for this device's architecture (compile only; next to the committed ones).
-cc=$(nvidia-smi --query-gpu=compute_cap --format=csv,noheader 2>/dev/null | head -1 | tr -d . || true)
 if [[ -n "$cc" ]]; then
   mkdir -p "$root/bench/results"
   cus=("$root"/kernels/src/kernels_*.cu)
@@ -52,24 +79,77 @@ if [[ -n "$cc" ]]; then
   nvidia-smi --query-gpu=name,driver_version,clocks.max.sm,clocks.max.mem --format=csv || true
 fi
 
-# Scenes travel xz-compressed (make-gpu-inputs.sh): unpack each once, with xz or Python.
+# Unpacks an .xz file with xz, or with Python where xz is missing.
+unxz_to() {  # SRC.xz DST
+  if command -v xz >/dev/null; then
+    xz -dc "$1" > "$2.tmp"
+  else
+    python3 -c 'import lzma, shutil, sys; shutil.copyfileobj(lzma.open(sys.argv[1]), open(sys.argv[2], "wb"))' \
+      "$1" "$2.tmp"
+  fi
+  mv "$2.tmp" "$2"
+}
+
+# Compiled scenes of the earlier layout (NAME.cwbvh.xz): unpack each once.
 for z in "$inputs"/*.cwbvh.xz; do
   [[ -e "$z" ]] || continue
   [[ -f "${z%.xz}" && "${z%.xz}" -nt "$z" ]] && continue
-  if command -v xz >/dev/null; then
-    xz -dkc "$z" > "${z%.xz}.tmp"
-  else
-    python3 -c 'import lzma, shutil, sys; shutil.copyfileobj(lzma.open(sys.argv[1]), open(sys.argv[2], "wb"))' \
-      "$z" "${z%.xz}.tmp"
-  fi
-  mv "${z%.xz}.tmp" "${z%.xz}"
+  unxz_to "$z" "${z%.xz}"
 done
-scenes=("$inputs"/*.cwbvh)
-[[ -e "${scenes[0]}" ]] || scenes=()
+scenes=()
+for f in "$inputs"/*.cwbvh; do
+  [[ -e "$f" ]] && scenes+=("$f")
+done
+
+# Scene sources: unpack, generate the DERIVED composite, compile with the bundled cwbvhc.
+times_file="$build/compile_times.txt"
+: > "$times_file"
+if [[ -f "$inputs/scenes/LIST" ]]; then
+  work="$build/scenes"
+  mkdir -p "$work"
+  bundle="$build/cwbvhc-bundle"
+  [[ -f "$inputs/cwbvhc-bundle.tar.xz" ]] ||
+    { echo "gpu-check: FAIL: gpu_inputs/scenes without gpu_inputs/cwbvhc-bundle.tar.xz" >&2; exit 2; }
+  if [[ ! -x "$bundle/cwbvhc" || "$inputs/cwbvhc-bundle.tar.xz" -nt "$bundle/cwbvhc" ]]; then
+    rm -rf "$bundle"
+    if command -v xz >/dev/null; then
+      tar -C "$build" -xJf "$inputs/cwbvhc-bundle.tar.xz"
+    else
+      python3 -c 'import sys, tarfile; kw = {"filter": "tar"} if hasattr(tarfile, "tar_filter") else {}
+tarfile.open(sys.argv[1], "r:xz").extractall(sys.argv[2], **kw)' \
+        "$inputs/cwbvhc-bundle.tar.xz" "$build"
+    fi
+  fi
+  head -1 "$bundle/MANIFEST"
+  mapfile -t sources < "$inputs/scenes/LIST"
+  for s in "${sources[@]}"; do
+    [[ -f "$work/$s" && "$work/$s" -nt "$inputs/scenes/$s.xz" ]] || unxz_to "$inputs/scenes/$s.xz" "$work/$s"
+  done
+  if [[ -f "$work/dragon.glb" && -f "$work/dragon_loop1_draco.glb" && -f "$work/kicad_board.glb" ]]; then
+    python3 "$root/scripts/make-derived-composite.py" "$work" "$work/derived_board_dragons.glb"
+    sources+=(derived_board_dragons.glb)
+  fi
+  threads=${COMPILE_THREADS:-$(nproc)}
+  for s in "${sources[@]}"; do
+    name=${s%.*}
+    t0=$(date +%s.%N)
+    if ! "$bundle/cwbvhc" "$work/$s" -o "$work/$name.cwbvh" --keep-sbvh --threads "$threads" --quiet \
+         --stats-json "$work/$name.stats.json" > "$work/$name.compile.log" 2>&1; then
+      cat "$work/$name.compile.log"
+      echo "gpu-check: FAIL: cwbvhc could not compile $s" >&2
+      exit 2
+    fi
+    t1=$(date +%s.%N)
+    secs=$(awk -v a="$t0" -v b="$t1" 'BEGIN {printf "%.2f", b - a}')
+    echo "$name $secs" >> "$times_file"
+    echo "compile $name: $secs s at $threads threads ($(( $(stat -c %s "$work/$name.cwbvh") >> 20 )) MiB)"
+    scenes+=("$work/$name.cwbvh")
+  done
+fi
 csv=${CSV:-$build/gpu_check.csv}
 log="$build/gpu_check.log"
 set +e
-"$build/bin/cwbvh_gpu_check" --csv "$csv" "$@" "${scenes[@]}" 2>&1 | tee "$log"
+"$build/bin/cwbvh_gpu_check" --csv "$csv" --compile-times "$times_file" "$@" "${scenes[@]}" 2>&1 | tee "$log"
 rc=${PIPESTATUS[0]}
 set -e
 gpus=$(nvidia-smi -L 2>/dev/null | grep -c '^GPU ' || true)
@@ -99,8 +179,9 @@ if [[ "${CWBVH_SANITIZE_GPU:-1}" == "1" ]]; then
       [[ "$(basename "$s")" == bunny* ]] && small=("$s")
     done
     for tool in memcheck racecheck; do
+      # --no-optix: the sanitizer checks our kernels, not OptiX's internals.
       if ! "$sanitizer" --tool "$tool" --error-exitcode 9 "$build/bin/cwbvh_gpu_check" --width 64 --height 64 \
-        --repeat 1 "${small[@]}" > "$build/sanitize-$tool.log" 2>&1; then
+        --repeat 1 --no-optix "${small[@]}" > "$build/sanitize-$tool.log" 2>&1; then
         tail -30 "$build/sanitize-$tool.log"
         echo "gpu-check: FAIL: compute-sanitizer $tool (log: $build/sanitize-$tool.log)" >&2
         exit 1

@@ -240,6 +240,9 @@ TEST(ShippedViewCatalog, ParsesWithOneToThreeViewsPerScene) {
     }
     for (const char* s : {"bunny", "dragon", "sponza_dabrovic", "oa_oacmpctf3", "oa_dm5", "fg_cg57"})
         EXPECT_TRUE(c.has_scene(s)) << s;
+    // The rest of the GPU set (scripts/make-gpu-inputs.sh, issue 18), the DERIVED composite included.
+    for (const char* s : {"dense_dragons", "dragon_loop1_draco", "kicad_board", "derived_board_dragons"})
+        EXPECT_TRUE(c.has_scene(s)) << s;
 }
 
 TEST(ShippedViewCatalog, KeepsTheViewsOfTheMeasuredGpuFigures) {

@@ -11,27 +11,30 @@
 // previous bounce had hits.
 //
 // Each ray set is traced by the CPU reference (cwbvh_cpu_trace, watertight), the CWBVH
-// kernel and the BVH2 kernel, closest and any hit. Timing: TraceOptions::kernel_ms
-// (CUDA events around the kernel launches alone: no allocation, memset or copy),
-// median of --repeat runs after one untimed warm-up; nodes/ray and triangles/ray come
-// from one more run with DeviceTraceStats, outside the timed runs.
+// kernel, the BVH2 kernel and, in a build with the OptiX headers (bench/optix), the
+// OptiX 9.0 peer over a GAS of the same triangles, closest and any hit. Timing:
+// TraceOptions::kernel_ms for our kernels, OptixPeer::trace's launch_ms for OptiX (CUDA
+// events around the launches alone: no allocation, memset or copy), median of --repeat
+// runs after one untimed warm-up; nodes/ray and triangles/ray come from one more run
+// with DeviceTraceStats, outside the timed runs (OptiX reports none).
 //
-// Comparison (closest hit): a GPU hit matches the CPU hit when both miss, or both
-// hit the same prim with |t_gpu - t_cpu| <= kUlpBound ulps. A different prim with t
-// within the bound is counted as a "tie" (two triangles at the same distance: which
-// one wins depends on test order, and postponing changes the order) and accepted.
-// Anything else (hit vs miss, t out of bound) is a mismatch and fails the check.
-// Why kUlpBound = 4: the watertight float path uses only correctly rounded
-// operations (fp.h), so it is bit-identical on host and device; the double fallback
-// may be contracted into FMAs by nvcc, which moves the double result by an ulp of
-// double, and at most 1 float ulp after rounding; 4 leaves margin.
-// Any hit: only hit/miss must agree.
+// Comparison: hit_compare.h (one function for all three). Our kernels must match the
+// CPU reference within kKernelUlpBound (a different prim at the same t is a tie,
+// accepted); any mismatch fails the check. OptiX's own triangle test is compared
+// within kOptixUlpBound, and its disagreements beyond equal-t ties are counted and
+// printed ("OX mis", of which hit-vs-miss in the CSV), never a failure.
 //
-// Output: one table row per scene, view, ray set and query with both kernels
-// (Mrays/s, CWBVH/BVH2, nodes/ray and triangles/ray, mismatches), then the geometric
-// means over scenes (a scene: the geometric mean over its views) of CWBVH/BVH2 and of
-// CWBVH Mrays/s, closest hit, per ray set and for diffuse 1-4 together (per view: all
-// diffuse rays over the summed kernel times), then "RESULT: PASS" or "RESULT: FAIL".
+// Output: one table row per scene, view, ray set and query with the kernels side by
+// side (Mrays/s, CWBVH/BVH2, CWBVH/OptiX, nodes/ray and triangles/ray, mismatches), a
+// per-scene table (triangles, .cwbvh size and compile time from --compile-times, the
+// CWBVH device bytes per triangle beside OptiX's compacted GAS bytes per triangle and
+// build time), then the geometric means over scenes (a scene: the geometric mean over
+// its views) of CWBVH/BVH2, CWBVH/OptiX and Mrays/s, closest hit, per ray set and for
+// diffuse 1-4 together (per view: all diffuse rays over the summed kernel times), then
+// "RESULT: PASS" or "RESULT: FAIL". A ray set of fewer than kMinRaysForMeans (1M) rays
+// (an open scene's later bounces, or a small --width/--height) is printed, marked '*',
+// and kept out of the geometric means; for diffuse 1-4 together the view's summed ray
+// count decides. The means say how many sets they left out.
 // --csv PATH writes the table (for bench/results/gpu/).
 //
 // Exit: 0 pass, or "SKIPPED: no CUDA device" when there is no device at all;
@@ -47,7 +50,9 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <optional>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -63,14 +68,20 @@
 #endif
 #include "cwbvh/kernels/trace.h"
 #include "cwbvh/kernels/view_catalog.h"
+#include "hit_compare.h"
+#ifdef CWBVH_HAVE_OPTIX  // bench/optix, built when the OptiX headers are given
+#include "optix_peer.h"
+#endif
 
 namespace {
 
 using namespace cwbvh;
 
-constexpr int kUlpBound = 4;
 constexpr int kBounces = 4;
 constexpr uint32_t kSeed = 1;  // `cwbvh rays` default seed: the same diffuse rays
+constexpr size_t kMinRaysForMeans = 1000000;  // smaller ray sets: printed, not in the geometric means
+constexpr int kKernels = 3;                   // CWBVH, BVH2, OptiX
+constexpr int kCw = 0, kB2 = 1, kOx = 2;
 
 struct Scene {
     std::string name;  ///< scene key (file stem)
@@ -78,6 +89,12 @@ struct Scene {
     std::vector<TriangleRecord> tris;
     std::vector<Bvh2Node> bvh2;
     SceneBounds bounds{};
+    uint64_t triangles = 0;   ///< stored triangles
+    uint64_t file_bytes = 0;  ///< the .cwbvh file
+    double compile_s = -1;    ///< cwbvhc wall time (--compile-times), -1 unknown
+    bool gas = false;         ///< OptiX GAS built (the fields below are set)
+    uint64_t gas_bytes = 0;
+    double gas_build_ms = 0, gas_compact_ms = 0;
 };
 
 /// One kernel's result on one ray set and query.
@@ -86,7 +103,7 @@ struct KernelResult {
     double ms = 0;  ///< median kernel time
     double mrays = 0;
     double nodes_per_ray = 0, tris_per_ray = 0;
-    uint64_t mismatches = 0, ties = 0, overflows = 0, bad_indices = 0;
+    uint64_t mismatches = 0, hit_vs_miss = 0, ties = 0, overflows = 0, bad_indices = 0;
 };
 
 struct Row {
@@ -95,44 +112,13 @@ struct Row {
     size_t rays = 0;
     uint64_t cpu_hits = 0;
     double cpu_mrays = 0;
-    KernelResult k[2];  ///< [0] CWBVH, [1] BVH2
-    double ratio() const { return k[0].ran && k[1].ran && k[1].mrays > 0 ? k[0].mrays / k[1].mrays : 0.0; }
-};
-
-uint32_t ulp_distance(float a, float b) {
-    if (a == b) return 0;
-    if (std::isinf(a) || std::isinf(b) || std::isnan(a) || std::isnan(b)) return 0xFFFFFFFFu;
-    int32_t ia, ib;
-    std::memcpy(&ia, &a, 4);
-    std::memcpy(&ib, &b, 4);
-    if (ia < 0) ia = int32_t(0x80000000u - uint32_t(ia));
-    if (ib < 0) ib = int32_t(0x80000000u - uint32_t(ib));
-    const int64_t d = int64_t(ia) - int64_t(ib);
-    return uint32_t(std::min<int64_t>(d < 0 ? -d : d, 0xFFFFFFFF));
-}
-
-struct Compare {
-    uint64_t mismatches = 0, ties = 0;
-    int64_t first_bad = -1;
-};
-
-Compare compare(const std::vector<Hit>& gpu, const std::vector<Hit>& cpu, bool any) {
-    Compare c;
-    for (size_t i = 0; i < cpu.size(); ++i) {
-        const bool gh = gpu[i].prim != kMissPrim, ch = cpu[i].prim != kMissPrim;
-        bool bad = gh != ch;
-        if (!bad && gh && !any) {
-            const bool close = ulp_distance(gpu[i].t, cpu[i].t) <= uint32_t(kUlpBound);
-            if (!close) bad = true;
-            else if (gpu[i].prim != cpu[i].prim) ++c.ties;
-        }
-        if (bad) {
-            if (c.first_bad < 0) c.first_bad = int64_t(i);
-            ++c.mismatches;
-        }
+    KernelResult k[kKernels];  ///< [kCw] CWBVH, [kB2] BVH2, [kOx] OptiX
+    /// CWBVH speed over kernel `other`'s, 0 when either did not run.
+    double ratio(int other = kB2) const {
+        return k[kCw].ran && k[other].ran && k[other].mrays > 0 ? k[kCw].mrays / k[other].mrays : 0.0;
     }
-    return c;
-}
+    bool in_means() const { return rays >= kMinRaysForMeans; }
+};
 
 // ---- GPU helpers ---------------------------------------------------------
 
@@ -177,6 +163,25 @@ double run_kernel(const DeviceScene& ds, bool bvh2, const Ray* d_rays, Hit* d_hi
     return times[times.size() / 2];
 }
 
+#ifdef CWBVH_HAVE_OPTIX
+/// The OptiX peer timed as run_kernel times ours: one untimed warm-up, `repeat` timed
+/// launches (events around optixLaunch alone), the hits of the last one.
+double run_optix(OptixPeer& peer, const Ray* d_rays, Hit* d_hits, size_t n, bool any, int repeat,
+                 std::vector<Hit>& hits) {
+    peer.trace(d_rays, d_hits, n, any);
+    std::vector<float> times;
+    for (int i = 0; i < repeat; ++i) {
+        float ms = 0;
+        peer.trace(d_rays, d_hits, n, any, &ms);
+        times.push_back(ms);
+    }
+    hits.resize(n);
+    if (n) CWBVH_CUDA_CHECK(cudaMemcpy(hits.data(), d_hits, n * sizeof(Hit), cudaMemcpyDeviceToHost));
+    std::sort(times.begin(), times.end());
+    return times[times.size() / 2];
+}
+#endif
+
 double geomean(const std::vector<double>& v) {
     if (v.empty()) return 0.0;
     double s = 0;
@@ -187,12 +192,15 @@ double geomean(const std::vector<double>& v) {
 int usage() {
     std::fprintf(stderr,
                  "usage: cwbvh_gpu_check [--width W] [--height H] [--repeat R] [--views CATALOG] [--csv PATH]\n"
-                 "                       [--cpu-only] [SCENE.cwbvh...]\n"
+                 "                       [--compile-times FILE] [--no-optix] [--cpu-only] [SCENE.cwbvh...]\n"
                  "  rays: every catalog view of each scene (default camera for a scene not in the catalog),\n"
                  "  W x H (default 2048 x 2048) primary rays and diffuse bounces 1-4; R timed runs (default 5).\n"
                  "  no scene: a synthetic 20k-triangle scene (builds with the compiler only). --cpu-only: generate "
                  "rays and CPU reference only\n"
                  "  (exercises everything but the GPU; used where there is no device).\n"
+                 "  --compile-times FILE: lines 'SCENE SECONDS' (scripts/gpu-check.sh), shown in the scene table.\n"
+                 "  --no-optix: leave the OptiX peer out (built only with -DCWBVH_OPTIX_INCLUDE_DIR).\n"
+                 "  ray sets of fewer than 1M rays are printed ('*') but kept out of the geometric means.\n"
                  "  exit: 0 pass or SKIPPED (no CUDA device), 1 mismatch, 2 usage/IO/CUDA error or unusable device\n");
     return 2;
 }
@@ -202,26 +210,57 @@ const char* kind_name(int bounce) {
     return k[bounce];
 }
 
+std::string fmt(bool ok, const char* f, double v) {
+    if (!ok) return "-";
+    char b[32];
+    std::snprintf(b, sizeof b, f, v);
+    return b;
+}
+
 void print_table(const std::vector<Row>& rows) {
-    std::printf("\n%-18s %-10s %-9s %-7s %9s %7s | %8s %8s %7s | %6s %6s %6s %6s | %6s %6s %5s %5s\n", "scene",
-                "view", "rays", "query", "count", "hit%", "CW Mr/s", "B2 Mr/s", "CW/B2", "CW n/r", "CW t/r", "B2 n/r",
-                "B2 t/r", "CW mis", "B2 mis", "ties", "ovfl");
+    std::printf("\n%-21s %-10s %-9s %-7s %10s %7s | %8s %8s %8s %7s %7s | %6s %6s %6s %6s | %6s %6s %6s %5s %5s\n",
+                "scene", "view", "rays", "query", "count", "hit%", "CW Mr/s", "B2 Mr/s", "OX Mr/s", "CW/B2", "CW/OX",
+                "CW n/r", "CW t/r", "B2 n/r", "B2 t/r", "CW mis", "B2 mis", "OX mis", "ties", "ovfl");
+    bool small = false;
     for (const Row& r : rows) {
-        char ratio[16] = "-", b2[16] = "-", b2n[16] = "-", b2t[16] = "-", b2m[24] = "-";
-        if (r.k[1].ran) {
-            std::snprintf(b2, sizeof b2, "%.1f", r.k[1].mrays);
-            std::snprintf(b2n, sizeof b2n, "%.1f", r.k[1].nodes_per_ray);
-            std::snprintf(b2t, sizeof b2t, "%.1f", r.k[1].tris_per_ray);
-            std::snprintf(b2m, sizeof b2m, "%llu", (unsigned long long)r.k[1].mismatches);
-        }
-        if (r.ratio() > 0) std::snprintf(ratio, sizeof ratio, "%.2fx", r.ratio());
-        std::printf(
-            "%-18s %-10s %-9s %-7s %9zu %6.1f%% | %8.1f %8s %7s | %6.1f %6.1f %6s %6s | %6llu %6s %5llu %5llu\n",
-            r.scene.c_str(), r.view.c_str(), r.rays_kind.c_str(), r.query.c_str(), r.rays,
-            r.rays ? 100.0 * double(r.cpu_hits) / double(r.rays) : 0.0, r.k[0].mrays, b2, ratio, r.k[0].nodes_per_ray,
-            r.k[0].tris_per_ray, b2n, b2t, (unsigned long long)r.k[0].mismatches, b2m,
-            (unsigned long long)(r.k[0].ties + r.k[1].ties), (unsigned long long)(r.k[0].overflows + r.k[1].overflows));
+        const KernelResult &c = r.k[kCw], &b = r.k[kB2], &o = r.k[kOx];
+        small = small || !r.in_means();
+        std::printf("%-21s %-10s %-9s %-7s %9zu%c %6.1f%% | %8.1f %8s %8s %7s %7s | %6.1f %6.1f %6s %6s | %6llu %6s "
+                    "%6s %5llu %5llu\n",
+                    r.scene.c_str(), r.view.c_str(), r.rays_kind.c_str(), r.query.c_str(), r.rays,
+                    r.in_means() ? ' ' : '*', r.rays ? 100.0 * double(r.cpu_hits) / double(r.rays) : 0.0, c.mrays,
+                    fmt(b.ran, "%.1f", b.mrays).c_str(), fmt(o.ran, "%.1f", o.mrays).c_str(),
+                    fmt(r.ratio(kB2) > 0, "%.2fx", r.ratio(kB2)).c_str(),
+                    fmt(r.ratio(kOx) > 0, "%.2fx", r.ratio(kOx)).c_str(), c.nodes_per_ray, c.tris_per_ray,
+                    fmt(b.ran, "%.1f", b.nodes_per_ray).c_str(), fmt(b.ran, "%.1f", b.tris_per_ray).c_str(),
+                    (unsigned long long)c.mismatches, fmt(b.ran, "%.0f", double(b.mismatches)).c_str(),
+                    fmt(o.ran, "%.0f", double(o.mismatches)).c_str(), (unsigned long long)(c.ties + b.ties),
+                    (unsigned long long)(c.overflows + b.overflows));
     }
+    if (small)
+        std::printf("* fewer than %zu rays: printed, not in the geometric means\n", kMinRaysForMeans);
+    std::printf("OX mis: OptiX hits that disagree with the CPU reference beyond equal-t ties (t within %u ulps, "
+                "hit vs miss); counted, not a failure\n", kOptixUlpBound);
+}
+
+/// Per scene: our file and its compile time beside OptiX's GAS and its build time.
+void print_scene_table(const std::vector<Scene>& scenes) {
+    std::printf("\n%-21s %10s | %9s %10s %7s | %9s %8s %8s %8s\n", "scene", "triangles", "file MiB", "compile s",
+                "CW B/t", "GAS MiB", "GAS B/t", "build ms", "cmpct ms");
+    for (const Scene& s : scenes) {
+        const double tri = double(std::max<uint64_t>(s.triangles, 1));
+        const double cw_dev = double(s.nodes.size() * sizeof(CwbvhNode) + s.tris.size() * sizeof(TriangleRecord));
+        std::printf("%-21s %10llu | %9.1f %10s %7.1f | %9s %8s %8s %8s\n", s.name.c_str(),
+                    (unsigned long long)s.triangles, double(s.file_bytes) / 1048576.0,
+                    fmt(s.compile_s >= 0, "%.2f", s.compile_s).c_str(), cw_dev / tri,
+                    fmt(s.gas, "%.1f", double(s.gas_bytes) / 1048576.0).c_str(),
+                    fmt(s.gas, "%.1f", double(s.gas_bytes) / tri).c_str(), fmt(s.gas, "%.1f", s.gas_build_ms).c_str(),
+                    fmt(s.gas, "%.1f", s.gas_compact_ms).c_str());
+    }
+    std::printf("file: the .cwbvh (with the BVH2 section); compile s: cwbvhc wall time on this machine "
+                "(scripts/gpu-check.sh); CW B/t: NODE + TRIS bytes per triangle (what the CWBVH kernel reads);\n"
+                "GAS: OptiX PREFER_FAST_TRACE + ALLOW_COMPACTION, compacted; build ms: optixAccelBuild, cmpct ms: "
+                "optixAccelCompact (CUDA events)\n");
 }
 
 /// Geometric means over scenes (a scene = the geometric mean over its views), closest hit.
@@ -234,38 +273,53 @@ void print_summary(const std::vector<Row>& rows) {
         if (!by.count(r.scene)) scene_order.push_back(r.scene);
         by[r.scene][r.view][r.bounce] = &r;
     }
-    std::printf("\nGeometric mean over %zu scene(s) (each scene: geometric mean over its views), closest hit:\n",
-                scene_order.size());
-    std::printf("%-14s %8s %14s %10s %8s\n", "rays", "scenes", "CWBVH Mrays/s", "CWBVH/BVH2", "(scenes)");
+    std::printf("\nGeometric mean over %zu scene(s) (each scene: geometric mean over its views), closest hit; "
+                "ray sets of fewer than %zu rays left out:\n",
+                scene_order.size(), kMinRaysForMeans);
+    std::printf("%-14s %8s %14s %10s %13s %11s %13s\n", "rays", "scenes", "CWBVH Mrays/s", "CWBVH/BVH2",
+                "OptiX Mrays/s", "CWBVH/OptiX", "sets left out");
     for (int set = 0; set <= kBounces + 1; ++set) {  // 0..4 per bounce, 5 = diffuse 1-4 together
-        std::vector<double> mr, ratio;
+        std::vector<double> mr, ratio, ox_mr, ox_ratio;
+        size_t left_out = 0;
         for (const std::string& s : scene_order) {
-            std::vector<double> vmr, vratio;
+            std::vector<double> vmr, vratio, vox_mr, vox_ratio;
             for (const auto& [view, bounces] : by[s]) {
-                double cw_ms = 0, b2_ms = 0, n = 0;
-                bool ok = true, have_b2 = true;
+                double ms[kKernels] = {0, 0, 0}, n = 0;
+                bool ok = true, have[kKernels] = {true, true, true};
                 for (int b = (set == kBounces + 1 ? 1 : set); b <= (set == kBounces + 1 ? kBounces : set); ++b) {
                     const auto it = bounces.find(b);
-                    if (it == bounces.end() || !it->second->k[0].ran) {
+                    if (it == bounces.end() || !it->second->k[kCw].ran) {
                         ok = false;
                         break;
                     }
-                    cw_ms += it->second->k[0].ms;
-                    b2_ms += it->second->k[1].ms;
-                    have_b2 = have_b2 && it->second->k[1].ran;
+                    for (int k = 0; k < kKernels; ++k) {
+                        ms[k] += it->second->k[k].ms;
+                        have[k] = have[k] && it->second->k[k].ran;
+                    }
                     n += double(it->second->rays);
                 }
-                if (!ok || n == 0 || cw_ms <= 0) continue;
-                vmr.push_back(n / (cw_ms * 1e3));
-                if (have_b2 && b2_ms > 0) vratio.push_back(b2_ms / cw_ms);
+                if (!ok || n == 0 || ms[kCw] <= 0) continue;
+                if (n < double(kMinRaysForMeans)) {
+                    ++left_out;
+                    continue;
+                }
+                vmr.push_back(n / (ms[kCw] * 1e3));
+                if (have[kB2] && ms[kB2] > 0) vratio.push_back(ms[kB2] / ms[kCw]);
+                if (have[kOx] && ms[kOx] > 0) {
+                    vox_mr.push_back(n / (ms[kOx] * 1e3));
+                    vox_ratio.push_back(ms[kOx] / ms[kCw]);
+                }
             }
             if (!vmr.empty()) mr.push_back(geomean(vmr));
             if (!vratio.empty()) ratio.push_back(geomean(vratio));
+            if (!vox_mr.empty()) ox_mr.push_back(geomean(vox_mr));
+            if (!vox_ratio.empty()) ox_ratio.push_back(geomean(vox_ratio));
         }
         const char* name = set <= kBounces ? kind_name(set) : "diffuse1-4";
-        char rs[16] = "-";
-        if (!ratio.empty()) std::snprintf(rs, sizeof rs, "%.2fx", geomean(ratio));
-        std::printf("%-14s %8zu %14.1f %10s %8zu\n", name, mr.size(), geomean(mr), rs, ratio.size());
+        std::printf("%-14s %8zu %14s %10s %13s %11s %13zu\n", name, mr.size(),
+                    fmt(!mr.empty(), "%.1f", geomean(mr)).c_str(), fmt(!ratio.empty(), "%.2fx", geomean(ratio)).c_str(),
+                    fmt(!ox_mr.empty(), "%.1f", geomean(ox_mr)).c_str(),
+                    fmt(!ox_ratio.empty(), "%.2fx", geomean(ox_ratio)).c_str(), left_out);
     }
 }
 
@@ -275,7 +329,8 @@ bool write_csv(const std::string& path, const std::vector<Row>& rows, const std:
     if (!f) return false;
     f << "scene,view,rays,query,width,height,count,cpu_hits,device,repeat,cwbvh_ms,cwbvh_mrays,bvh2_ms,bvh2_mrays,"
          "cwbvh_over_bvh2,cwbvh_nodes_per_ray,cwbvh_tris_per_ray,bvh2_nodes_per_ray,bvh2_tris_per_ray,"
-         "cwbvh_mismatches,bvh2_mismatches,cwbvh_ties,bvh2_ties,cwbvh_overflows,bvh2_overflows\n";
+         "cwbvh_mismatches,bvh2_mismatches,cwbvh_ties,bvh2_ties,cwbvh_overflows,bvh2_overflows,"
+         "optix_ms,optix_mrays,cwbvh_over_optix,optix_mismatches,optix_hit_vs_miss,optix_ties,in_means\n";
     auto num = [](bool ran, double v) {
         if (!ran) return std::string();
         char b[32];
@@ -284,24 +339,46 @@ bool write_csv(const std::string& path, const std::vector<Row>& rows, const std:
     };
     auto cnt = [](bool ran, uint64_t v) { return ran ? std::to_string(v) : std::string(); };
     for (const Row& r : rows) {
-        const KernelResult &c = r.k[0], &b = r.k[1];
+        const KernelResult &c = r.k[kCw], &b = r.k[kB2], &o = r.k[kOx];
         f << r.scene << ',' << r.view << ',' << r.rays_kind << ',' << r.query << ',' << width << ',' << height << ','
           << r.rays << ',' << r.cpu_hits << ",\"" << device << "\"," << repeat << ',' << num(c.ran, c.ms) << ','
           << num(c.ran, c.mrays) << ',' << num(b.ran, b.ms) << ',' << num(b.ran, b.mrays) << ','
-          << num(r.ratio() > 0, r.ratio()) << ',' << num(c.ran, c.nodes_per_ray) << ',' << num(c.ran, c.tris_per_ray)
-          << ',' << num(b.ran, b.nodes_per_ray) << ',' << num(b.ran, b.tris_per_ray) << ','
-          << cnt(c.ran, c.mismatches) << ',' << cnt(b.ran, b.mismatches) << ',' << cnt(c.ran, c.ties) << ','
-          << cnt(b.ran, b.ties) << ',' << cnt(c.ran, c.overflows) << ',' << cnt(b.ran, b.overflows) << '\n';
+          << num(r.ratio(kB2) > 0, r.ratio(kB2)) << ',' << num(c.ran, c.nodes_per_ray) << ','
+          << num(c.ran, c.tris_per_ray) << ',' << num(b.ran, b.nodes_per_ray) << ',' << num(b.ran, b.tris_per_ray)
+          << ',' << cnt(c.ran, c.mismatches) << ',' << cnt(b.ran, b.mismatches) << ',' << cnt(c.ran, c.ties) << ','
+          << cnt(b.ran, b.ties) << ',' << cnt(c.ran, c.overflows) << ',' << cnt(b.ran, b.overflows) << ','
+          << num(o.ran, o.ms) << ',' << num(o.ran, o.mrays) << ',' << num(r.ratio(kOx) > 0, r.ratio(kOx)) << ','
+          << cnt(o.ran, o.mismatches) << ',' << cnt(o.ran, o.hit_vs_miss) << ',' << cnt(o.ran, o.ties) << ','
+          << (r.in_means() ? 1 : 0) << '\n';
     }
     return bool(f);
+}
+
+/// --compile-times: "SCENE SECONDS" per line (scripts/gpu-check.sh writes it).
+bool read_compile_times(const std::string& path, std::map<std::string, double>& out) {
+    std::ifstream f(path);
+    if (!f) return false;
+    std::string line;
+    while (std::getline(f, line)) {
+        std::istringstream in(line);
+        std::string name, rest;
+        double sec = 0;
+        if (!(in >> name)) continue;  // blank line
+        if (!(in >> sec) || in >> rest || !(sec >= 0)) return false;
+        out[name] = sec;
+    }
+    return true;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
+    // Line-buffered even into a pipe or file (gpu-check.sh tees it): a run cut off by the
+    // device tool's time limit still leaves every line it printed.
+    std::setvbuf(stdout, nullptr, _IOLBF, 0);
     int width = 2048, height = 2048, repeat = 5;
-    bool cpu_only = false;
-    std::string views_path, csv_path;
+    bool cpu_only = false, no_optix = false;
+    std::string views_path, csv_path, compile_times_path;
     std::vector<std::string> paths;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
@@ -323,6 +400,8 @@ int main(int argc, char** argv) {
         else if (a == "--repeat") { if (!num(repeat, 1000)) return usage(); }
         else if (a == "--views") { if (!str(views_path)) return usage(); }
         else if (a == "--csv") { if (!str(csv_path)) return usage(); }
+        else if (a == "--compile-times") { if (!str(compile_times_path)) return usage(); }
+        else if (a == "--no-optix") no_optix = true;
         else if (a == "--cpu-only") cpu_only = true;
         else if (a == "-h" || a == "--help") return usage();
         else if (!a.empty() && a[0] == '-') return usage();
@@ -361,14 +440,22 @@ int main(int argc, char** argv) {
         }
     }
 
+    std::map<std::string, double> compile_times;
+    if (!compile_times_path.empty() && !read_compile_times(compile_times_path, compile_times)) {
+        std::fprintf(stderr, "cwbvh_gpu_check: error: %s: cannot read 'SCENE SECONDS' lines\n",
+                     compile_times_path.c_str());
+        return 2;
+    }
+
     std::vector<Scene> scenes;
     if (paths.empty()) {
 #ifdef CWBVH_HAVE_SYNTHETIC
         SyntheticOptions so;
         so.triangles = 20000;
         SceneData sd = make_synthetic_scene(so);
-        scenes.push_back(Scene{"synthetic-20k", std::move(sd.nodes), std::move(sd.triangles), std::move(sd.bvh2),
-                               sd.bounds});
+        Scene s{"synthetic-20k", std::move(sd.nodes), std::move(sd.triangles), std::move(sd.bvh2), sd.bounds};
+        s.triangles = so.triangles;
+        scenes.push_back(std::move(s));
 #else
         std::fprintf(stderr, "cwbvh_gpu_check: error: no scene given (this build has no compiler core, so no "
                              "synthetic scene: pass SCENE.cwbvh files)\n");
@@ -387,6 +474,9 @@ int main(int argc, char** argv) {
         s.tris.assign(f->triangles().begin(), f->triangles().end());
         s.bvh2.assign(f->bvh2().begin(), f->bvh2().end());
         if (f->bounds()) s.bounds = *f->bounds();
+        s.triangles = f->stored_triangle_count();
+        s.file_bytes = f->bytes().size();
+        if (const auto it = compile_times.find(s.name); it != compile_times.end()) s.compile_s = it->second;
         scenes.push_back(std::move(s));
     }
 
@@ -407,9 +497,25 @@ int main(int argc, char** argv) {
                             info[k].registers, info[k].local_bytes, info[k].shared_bytes, info[k].ptx_version,
                             info[k].binary_version);
         }
+        // The OptiX peer: one line saying why when it does not run.
+#ifdef CWBVH_HAVE_OPTIX
+        std::unique_ptr<OptixPeer> optix;
+        if (have_gpu && !no_optix) {
+            std::string optix_why;
+            optix = OptixPeer::create(optix_why);
+            if (optix) std::printf("optix: %s, libnvoptix from the driver\n", OptixPeer::version().c_str());
+            else std::printf("optix: skipped: %s\n", optix_why.c_str());
+        } else if (have_gpu) {
+            std::printf("optix: skipped: --no-optix\n");
+        }
+#else
+        if (have_gpu) std::printf("optix: skipped: built without the OptiX 9.0 headers (-DCWBVH_OPTIX_INCLUDE_DIR; "
+                                  "scripts/gpu-check.sh: gpu_inputs/optix/include)\n");
+        (void)no_optix;
+#endif
         std::printf("rays: %dx%d per view, diffuse bounces 1-%d (paths end when they escape), seed %u, "
                     "%d timed runs\n", width, height, kBounces, kSeed, repeat);
-        for (const Scene& s : scenes) {
+        for (Scene& s : scenes) {
             const PrimTable table(s.tris.data(), s.tris.size());
             std::optional<DeviceScene> ds;
             if (have_gpu) {
@@ -432,6 +538,30 @@ int main(int argc, char** argv) {
                             ds->upload_stats().seconds * 1e3, up_pageable);
                 if (!ds->has_bvh2())
                     std::printf("%s: no BVH2 section (compile with --keep-sbvh): CWBVH kernel only\n", s.name.c_str());
+#ifdef CWBVH_HAVE_OPTIX
+                OptixGasInfo gi;
+                if (optix) {
+                    try {
+                        gi = optix->build(s.tris.data(), s.tris.size());
+                    } catch (const CudaError&) {
+                        throw;  // the device may be unusable now: fail as any CUDA error does
+                    } catch (const std::exception& e) {  // OptiX's own error: our check goes on
+                        std::printf("optix: stopped (%s: GAS build): %s\n", s.name.c_str(), e.what());
+                        optix.reset();
+                    }
+                }
+                if (optix) {
+                    s.gas = true;
+                    s.gas_bytes = gi.gas_bytes;
+                    s.gas_build_ms = gi.build_ms;
+                    s.gas_compact_ms = gi.compact_ms;
+                    std::printf("%s: OptiX GAS %llu triangles: build %.1f ms, compact %.1f ms, %.1f MiB (%.1f before "
+                                "compaction, %.1f B/triangle)\n",
+                                s.name.c_str(), (unsigned long long)gi.triangles, gi.build_ms, gi.compact_ms,
+                                double(gi.gas_bytes) / 1048576.0, double(gi.uncompacted_bytes) / 1048576.0,
+                                double(gi.gas_bytes) / double(std::max<uint64_t>(gi.triangles, 1)));
+                }
+#endif
             }
 
             for (const View& view : benchmark_views(catalog, s.name, s.bounds)) {
@@ -482,6 +612,33 @@ int main(int argc, char** argv) {
                                                     cudaMemcpyHostToDevice));
                         for (int any = 0; any < 2; ++any) {
                             Row& r = rows[rows.size() - 2 + size_t(any)];
+#ifdef CWBVH_HAVE_OPTIX
+                            std::vector<Hit> ox_hits;
+                            double ox_ms = 0;
+                            if (optix) {
+                                try {
+                                    ox_ms = run_optix(*optix, d_rays.p, d_hits.p, rays.size(), any != 0, repeat,
+                                                      ox_hits);
+                                } catch (const CudaError&) {
+                                    throw;
+                                } catch (const std::exception& e) {
+                                    std::printf("optix: stopped (%s %s %s): %s\n", s.name.c_str(), view.name.c_str(),
+                                                kind_name(bounce), e.what());
+                                    optix.reset();
+                                }
+                            }
+                            if (optix) {
+                                const HitCompare c =
+                                    compare_hits(ox_hits, any ? ref_any : ref, any != 0, kOptixUlpBound);
+                                KernelResult& kr = r.k[kOx];
+                                kr.ran = true;
+                                kr.ms = ox_ms;
+                                kr.mrays = ox_ms > 0 ? double(rays.size()) / (ox_ms * 1e3) : 0.0;
+                                kr.mismatches = c.mismatches;
+                                kr.hit_vs_miss = c.hit_vs_miss;
+                                kr.ties = c.ties;
+                            }
+#endif
                             for (int k = 0; k < 2; ++k) {
                                 const bool bvh2 = k == 1;
                                 if (bvh2 && !ds->has_bvh2()) continue;
@@ -490,7 +647,7 @@ int main(int argc, char** argv) {
                                 const double ms = run_kernel(*ds, bvh2, d_rays.p, d_hits.p, rays.size(), any != 0,
                                                              repeat, hits, st);
                                 const std::vector<Hit>& cpu = any ? ref_any : ref;
-                                const Compare c = compare(hits, cpu, any != 0);
+                                const HitCompare c = compare_hits(hits, cpu, any != 0, kKernelUlpBound);
                                 KernelResult& kr = r.k[k];
                                 kr.ran = true;
                                 kr.ms = ms;
@@ -534,11 +691,13 @@ int main(int argc, char** argv) {
         return 2;
     }
     if (!have_gpu) {
+        print_scene_table(scenes);  // the compile side (no GAS columns without a GPU)
         std::printf("CPU-only run done (%s)%s\n", why.empty() ? "--cpu-only" : why.c_str(),
                     failed ? ": CPU closest/any-hit disagreement" : "");
         return failed ? 1 : 0;
     }
     print_table(rows);
+    print_scene_table(scenes);
     print_summary(rows);
     std::printf("%s\n", failed ? "RESULT: FAIL" : "RESULT: PASS");
     return failed ? 1 : 0;
