@@ -8,8 +8,8 @@
 # is close to the watertight float path). The node probe runs in two variants: the
 # kernel's common path (intersect_node_fast, node_intersect_fast.h) and the reference
 # arithmetic (intersect_node_scalar: rays the fast test does not accept). The last
-# lines give each step net of the set-up probe. Sizes come in multiples of 8
-# instructions (each kernel's code is padded to 128 bytes), so +-8.
+# lines give each step net of the set-up probe. The NOPs that pad each kernel to 128
+# bytes are not counted (sm_90's NOP encoding; on another ARCH the sizes may include them).
 # usage: bench/gpu/step_sizes.sh [ARCH, default sm_90]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
@@ -20,12 +20,17 @@ trap 'rm -rf "$tmp"' EXIT
 "$nvcc" -std=c++17 -O3 -DNDEBUG -arch="$arch" -cubin -I"$root/kernels/include" -I"$root/format/include" \
   "$root/bench/gpu/step_probe.cu" -o "$tmp/probe.cubin"
 readelf -SW "$tmp/probe.cubin" 2>/dev/null | python3 -c '
-import re, subprocess, sys
+import re, struct, subprocess, sys
+cubin = open(sys.argv[1], "rb").read()
 rows = []
 for line in sys.stdin:
-    m = re.search(r"\] (\.text\.\S+)\s+\S+\s+\S+\s+\S+\s+([0-9a-f]+)", line)
+    m = re.search(r"\] (\.text\.\S+)\s+\S+\s+\S+\s+([0-9a-f]+)\s+([0-9a-f]+)", line)
     if m:
-        rows.append((m.group(1)[len(".text."):], int(m.group(2), 16)))
+        off, size = int(m.group(2), 16), int(m.group(3), 16)
+        # Drop the NOPs that pad the code to 128 bytes (sm_90 NOP: low word 0x7918).
+        while size >= 16 and struct.unpack_from("<Q", cubin, off + size - 16)[0] == 0x7918:
+            size -= 16
+        rows.append((m.group(1)[len(".text."):], size))
 names = subprocess.run(["c++filt"], input="\n".join(n for n, _ in rows), capture_output=True, text=True).stdout.split("\n")
 empty = next(s for (n, s) in rows if "probe_empty" in n)
 net = {}
@@ -45,4 +50,4 @@ for k, v in net.items():
     if "probe_cwbvh_node" in k:
         which = "fast (common path)" if "true>" in k else "reference arithmetic"
         print(f"node step, {which}, net of set-up: {v - setup} instructions")
-'
+' "$tmp/probe.cubin"

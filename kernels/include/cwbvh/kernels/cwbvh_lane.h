@@ -106,7 +106,7 @@ CWBVH_HD CWBVH_INLINE void visit_node(CwbvhLane<kTest>& l, const CwbvhNode& node
     // (several instructions each) and the kernel would spill (sm_75): reference arithmetic.
     const uint32_t hitmask = intersect_node(node, l.nray, l.tmin, l.tmax);
 #else
-    const uint32_t hitmask = l.nray.fast ? intersect_node_fast(node, l.nray, l.tmin, l.tmax)
+    const uint32_t hitmask = l.nray.fast ? intersect_node_fast(node, l.nray, l.tmax)
                                          : intersect_node(node, l.nray, l.tmin, l.tmax);
 #endif
     l.node_group = StackEntry{node.child_base, (hitmask & 0xFF000000u) | node.imask};

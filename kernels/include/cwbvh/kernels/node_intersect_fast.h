@@ -42,9 +42,10 @@
 //   |t' - T'| <= u (5|O| + 3 * 255|idir| + 3|o' rcp| + |J|) <= 5u * S,
 //   S = (1 + 2^-5)|J| + |O| + |norcp|   (3 * 255 / 2^15 < 2^-5).
 // Near/far distances are widened by E = 2^-20 S (16u S: margin for the roundings of
-// S and of O' -/+ E), near down, far up; the far end is also capped by
-// tmax' >= tmax - tmin (rounded up); the hit test is near <= far (closed boxes stay
-// hittable).
+// S and of O' -/+ E), near down, far up; the hit test is near <= far (closed boxes
+// stay hittable). The near end is also compared with tmax itself, not with the exact
+// end of the moved interval, tmax - tmin <= tmax (tmin >= 0): a superset, equal for
+// the usual tmin = 0, and no rounding to direct.
 #pragma once
 
 #include <cstdint>
@@ -191,18 +192,9 @@ CWBVH_HD CWBVH_INLINE void enable_fast_node_test(NodeRay& r, const NodeScale& sc
     r.one_bits = sc.one_bits;
 }
 
-/// tmax - tmin rounded up (the far cap of intersect_node_fast): RN(tmax - tmin) is
-/// within a factor (1 - u) below the exact difference, and the fma raises it by
-/// 2^-22 > 2u relative (and keeps +inf).
-CWBVH_HD CWBVH_INLINE float fast_node_tmax(float tmin, float tmax) {
-    const float d = sub_rn(tmax, tmin);
-    return fma_rn(d, 2.384185791015625e-07f, d);
-}
-
 /// The fast node test (see the file comment). octinv and the plane rows as in
-/// intersect_node_scalar.
-CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const NodeRay& r, float tmin,
-                                                   float tmax) {
+/// intersect_node_scalar; tmin is in the moved origin (enable_fast_node_test).
+CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const NodeRay& r, float tmax) {
     uint32_t lo_w[6], hi_w[6], meta_w[2], e_w;
     memcpy(lo_w, n.q_lo, sizeof lo_w);
     memcpy(hi_w, n.q_hi, sizeof hi_w);
@@ -239,7 +231,6 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const Nod
         index_w[h] = m ^ (inner * r.octinv);  // low five bits of each byte
         bits_w[h] = (m >> 5) & 0x07070707u;
     }
-    const float tcap = fast_node_tmax(tmin, tmax);
     uint32_t hitmask = 0;
     CWBVH_UNROLL
     for (int s = 0; s < kWidth; ++s) {
@@ -252,7 +243,7 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const Nod
         const float tfz = fma_rn(plane_unit(far_w[4 + h], s, r.one_bits), J[2], of[2]);
         const float tnear = bits_to_float(uint32_t(imax3_relu(float_as_int(tnx), float_as_int(tny), float_as_int(tnz))));
         const float tfar = bits_to_float(uint32_t(imin3(float_as_int(tfx), float_as_int(tfy), float_as_int(tfz))));
-        if (tnear <= tfar && tnear <= tcap) {
+        if (tnear <= tfar && tnear <= tmax) {
             // Empty slots have meta 0: no bits.
             const uint32_t bits = byte_perm(bits_w[h], 0u, 0x4440u | uint32_t(s & 3));
             hitmask |= shl_wrap(bits, index_w[h] >> (8 * (s & 3)));
