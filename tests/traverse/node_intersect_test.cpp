@@ -2,8 +2,10 @@
 // (conservative, Ize 2013 style), on random and adversarial nodes and rays.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include "cwbvh/kernels/node_intersect.h"
 #include "cwbvh/kernels/node_intersect_fast.h"
@@ -211,6 +213,56 @@ TEST(NodeIntersect, NeverMissesExactlyHitChild) { check_never_misses(Which::kRef
 TEST(NodeIntersect, FastTestNeverMissesExactlyHitChild) {
     check_never_misses(Which::kFast, 12345);
     check_never_misses(Which::kFast, 98765);
+}
+
+TEST(NodeIntersect, NodeScaleBoundsEveryNodeAndRefusesWhatTheFastTestCannotExpress) {
+    Gen g(4242);
+    std::vector<CwbvhNode> nodes;
+    for (int i = 0; i < 500; ++i) nodes.push_back(random_node(g, g.irange(-30, 30)));
+    const NodeScale sc = node_scale(nodes.data(), nodes.size());
+    ASSERT_EQ(sc.usable, 1u);
+    EXPECT_EQ(sc.one_bits, 0x3F800000u);
+    uint32_t emin = 255;
+    for (const CwbvhNode& n : nodes)
+        for (int a = 0; a < 3; ++a) {
+            EXPECT_GE(double(sc.plane_max), std::fabs(double(n.p[a])) + 255.0 * double(exponent_scale(n.e[a])));
+            EXPECT_GE(sc.scale_max, exponent_scale(n.e[a]));
+            emin = std::min<uint32_t>(emin, n.e[a]);
+        }
+    EXPECT_EQ(sc.rcp_floor, std::ldexp(1.0f, -14 - int(emin)));
+    // Exponent 0 (planes all at p), exponents whose J = 2^(e-112) rcp leaves the
+    // integer exponent add, a NaN or huge origin, no nodes: no fast test.
+    auto refused = [&](auto edit) {
+        std::vector<CwbvhNode> bad = nodes;
+        edit(bad[123]);
+        return node_scale(bad.data(), bad.size()).usable == 0;
+    };
+    EXPECT_TRUE(refused([](CwbvhNode& n) { n.e[1] = 0; }));
+    EXPECT_TRUE(refused([](CwbvhNode& n) { n.e[2] = uint8_t(kFastMaxExponent + 1); }));
+    EXPECT_FALSE(refused([](CwbvhNode& n) { n.e[2] = uint8_t(kFastMaxExponent); }));
+    EXPECT_TRUE(refused([](CwbvhNode& n) { n.p[0] = std::nanf(""); }));
+    EXPECT_TRUE(refused([](CwbvhNode& n) { n.p[0] = 3e38f; }));
+    EXPECT_EQ(node_scale(nodes.data(), 0).usable, 0u);
+    // A ray set-up against these bounds: accepted for an ordinary ray, refused for
+    // tmin < 0, a zero or tiny direction component, and an origin far enough out.
+    const Ray ok{{1, 2, 3}, 0.0f, {0.3f, -0.5f, 0.8f}, INFINITY};
+    auto fast = [&](Ray r, float tmin) {
+        NodeRay nr = make_node_ray(r);
+        enable_fast_node_test(nr, sc, r.dir, tmin);
+        return nr.fast == 1u;
+    };
+    EXPECT_TRUE(fast(ok, 0.0f));
+    EXPECT_TRUE(fast(ok, 2.5f));
+    EXPECT_FALSE(fast(ok, -1.0f));
+    EXPECT_FALSE(fast(ok, -0.0f));  // the lane makes -0 +0 first
+    Ray r = ok;
+    r.dir[1] = 0.0f;
+    EXPECT_FALSE(fast(r, 0.0f));
+    r.dir[1] = 1e-30f;
+    EXPECT_FALSE(fast(r, 0.0f));
+    r = ok;
+    r.org[0] = 1e37f;
+    EXPECT_FALSE(fast(r, 0.0f));
 }
 
 TEST(NodeIntersect, ScalarAndSimdAgreeBitForBit) {

@@ -258,6 +258,7 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const Nod
 /// cannot express) make the scene use intersect_node_scalar throughout.
 inline NodeScale node_scale(const CwbvhNode* nodes, uint64_t count) {
     double plane = 0.0;
+    bool finite = true;
     uint32_t emin = 255, emax = 0;
     for (uint64_t i = 0; i < count; ++i) {
         for (int a = 0; a < 3; ++a) {
@@ -266,11 +267,12 @@ inline NodeScale node_scale(const CwbvhNode* nodes, uint64_t count) {
             emax = e > emax ? e : emax;
             const double pa = nodes[i].p[a];
             const double reach = (pa < 0 ? -pa : pa) + 255.0 * double(exponent_scale(uint8_t(e)));
-            if (!(reach <= plane)) plane = reach;  // also takes NaN (then unusable below)
+            finite = finite && reach < 1e38;  // false for NaN and inf
+            plane = reach > plane ? reach : plane;
         }
     }
     NodeScale sc{0.0f, 0.0f, 0.0f, 0u, 0x3F800000u};
-    if (count == 0 || emin < 1 || emax > kFastMaxExponent || !(plane < 1e38)) return sc;
+    if (count == 0 || !finite || emin < 1 || emax > kFastMaxExponent) return sc;
     // Round up to float: the set-up test must not underestimate.
     float pf = float(plane);
     if (double(pf) < plane) pf = bits_to_float(float_to_bits(pf) + 1u);
