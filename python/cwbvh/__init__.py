@@ -179,7 +179,7 @@ class Scene:
         stream = _arrays.stream_handle(stream)
         o_dev = _arrays.device_view(origins, o_name, stream)
         d_dev = None if packed else _arrays.device_view(directions, "directions", stream)
-        if (o_dev is None) != (packed or d_dev is None):
+        if not packed and (o_dev is None) != (d_dev is None):
             raise TypeError("origins and directions must both be host arrays or both device arrays")
         if o_dev is not None:
             return self._trace_device(origins, o_dev, d_dev, tmin, tmax, any_hit, watertight, stream)
