@@ -21,10 +21,10 @@ import numpy as _np
 
 from . import _arrays, _cwbvh
 from ._cwbvh import Error, built_with_cuda, gpu_status
-from .rays import camera_rays, diffuse_rays, pack_rays, read_hits, read_rays, views
+from .rays import camera_rays, diffuse_rays, pack_rays, read_hits, read_rays, view, views
 
 __all__ = ["compile", "open", "Scene", "Hits", "Error", "MISS", "camera_rays", "diffuse_rays", "pack_rays",
-           "read_rays", "read_hits", "views", "gpu_status", "built_with_cuda"]
+           "read_rays", "read_hits", "view", "views", "gpu_status", "built_with_cuda"]
 
 MISS = 0xFFFFFFFF  #: prim of a ray that hit nothing
 

@@ -40,6 +40,16 @@ def views(scene, catalog=None, key=None):
     return scene._handle().views(key or _cwbvh.scene_key(scene.path), catalog or "")
 
 
+def view(scene, which=None, catalog=None, key=None):
+    """One view of `scene` (a dict as views() gives): `which` is a name or 1-based index; None:
+    the first (the default camera for a scene not in the catalog)."""
+    return _view(scene, which, catalog, key)
+
+
+def _view(scene, which, catalog, key):
+    return scene._handle().view(key or _cwbvh.scene_key(scene.path), "" if which is None else str(which), catalog or "")
+
+
 def camera_rays(scene, view=None, width=1024, height=1024, camera=None, catalog=None, key=None):
     """width x height pinhole rays, row 0 at the top, row-major, as `cwbvh rays --primary`:
     `view` is a catalog view name or 1-based index (default: the scene's first view, or the
@@ -49,8 +59,7 @@ def camera_rays(scene, view=None, width=1024, height=1024, camera=None, catalog=
     if camera is not None and view is not None:
         raise ValueError("camera_rays: give view or camera, not both")
     if camera is None:
-        which = "" if view is None else str(view)
-        camera = handle.view(key or _cwbvh.scene_key(scene.path), which, catalog or "")["camera"]
+        camera = _view(scene, view, catalog, key)["camera"]
     return handle.camera_rays(camera, int(width), int(height))
 
 
