@@ -12,6 +12,7 @@ That is what makes Open3D 0.16's RaycastingScene.cast_rays miss everything on De
 
 import ctypes
 import threading
+import time
 
 import numpy as np
 
@@ -97,7 +98,9 @@ class EmbreeScene:
 
     def intersect(self, rays, threads=1, mask=0xFFFFFFFF):
         """Closest hits of (N, 8) float32 rays (cwbvh's ray-file layout): (t, u, v, prim) like
-        cwbvh's Scene.trace (t = inf, prim = MISS for a miss). `mask` is the rays' mask."""
+        cwbvh's Scene.trace (t = inf, prim = MISS for a miss). `mask` is the rays' mask.
+        last_trace_seconds: the wall time of the rtcIntersect1M calls alone (without filling the
+        RTCRayHit records and reading the hits back, which the wrapper does with numpy)."""
         rays = np.asarray(rays, dtype=np.float32)
         n = len(rays)
         raw = np.empty(n * _RAYHIT_FLOATS + 4, dtype=np.float32)  # 16-byte alignment by offset
@@ -113,7 +116,9 @@ class EmbreeScene:
         bits[:, 11] = 0                      # flags
         bits[:, _GEOM] = RTC_INVALID_GEOMETRY_ID
         bits[:, 19] = RTC_INVALID_GEOMETRY_ID
+        start = time.perf_counter()
         self._run(rh, threads)
+        self.last_trace_seconds = time.perf_counter() - start  # rtcIntersect1M calls alone
         hit = bits[:, _GEOM] != RTC_INVALID_GEOMETRY_ID
         t = np.where(hit, rh[:, _TFAR], np.float32(np.inf)).astype(np.float32)
         u = np.where(hit, rh[:, _U], 0).astype(np.float32)

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <memory>
 #include <thread>
 #include <vector>
 
@@ -80,10 +81,10 @@ py::array trace_host(const SceneHandle& h, const py::array& origins, const py::o
     CpuTraceStats s;
     {
         py::gil_scoped_release release;  // the buffers stay referenced by the arrays' owners
-        std::vector<Ray> packed;
+        std::unique_ptr<Ray[]> packed;  // default-initialised: every byte is written by the packing
         const Ray* rays = static_cast<const Ray*>(o.ptr);
         if (!zero_copy) {
-            packed.resize(n);
+            packed.reset(new Ray[n]);
             const char* ob = static_cast<const char*>(o.ptr);
             const char* db = static_cast<const char*>(d.ptr);
             parallel_parts(n, threads, [&](size_t begin, size_t end) {
@@ -104,7 +105,7 @@ py::array trace_host(const SceneHandle& h, const py::array& origins, const py::o
                     }
                 }
             });
-            rays = packed.data();
+            rays = packed.get();
         }
         CpuTraceOptions opt;
         opt.mode = any ? HitMode::kAny : HitMode::kClosest;
