@@ -75,7 +75,7 @@ def main():
     work = pathlib.Path(tempfile.mkdtemp(prefix="cwbvh-pybench-", dir="/dev/shm" if os.path.isdir("/dev/shm") else None))
     shim = None if args.no_open3d else shim_path(work)
     results = {"machine": "%s, %d cores" % (platform.processor() or platform.machine(), os.cpu_count()),
-               "size": args.size, "repeat": args.repeat, "scenes": {}}
+               "size": args.size, "repeat": args.repeat, "load_average_at_start": os.getloadavg(), "scenes": {}}
     for name in args.scenes.split(","):
         src = scene_source(name)
         path = work / (name + ".cwbvh")
@@ -148,6 +148,7 @@ def main():
             del row["prim"]
         results["scenes"][name] = sres
         print(json.dumps({name: sres["first_ray"]}), flush=True)
+    results["load_average_at_end"] = os.getloadavg()
     (out / "results.json").write_text(json.dumps(results, indent=1))
     write_table(results, out / "table.md", open3d=shim is not None)
     plot(results, out / "throughput.png")
@@ -155,7 +156,10 @@ def main():
 
 def write_table(results, path, open3d):
     lines = ["Rays per second (Mrays/s, median of %d runs, CPU, %dx%d rays per view; diffuse: bounce 1 of "
-             "the paths that hit)" % (results["repeat"], results["size"], results["size"]), ""]
+             "the paths that hit). %s; load average (1, 5, 15 min) %s at the start, %s at the end" % (
+                 results["repeat"], results["size"], results["size"], results["machine"],
+                 "/".join("%.1f" % x for x in results["load_average_at_start"]),
+                 "/".join("%.1f" % x for x in results["load_average_at_end"])), ""]
     head = ("| scene | view / rays | N | cwbvh 1T | Embree 1T (rtcIntersect1M alone) | %scwbvh 2T | Embree 2T "
             "(rtcIntersect1M alone) | %scwbvh/Embree 1T | 2T | same prim as Embree | max rel. t diff (same prim) |")
     head = head % (("Open3D 1T | ", "Open3D 2T | ") if open3d else ("", ""))

@@ -4,25 +4,15 @@ usage: PYTHONPATH=build/python /usr/bin/python3 examples/python/depth_image.py \
            [SCENE.glb|SCENE.cwbvh] [--view NAME] [-o depth.png]
 Default scene: ../shared/scenes/sponza_dabrovic.glb (compiled next to the PNG on first use).
 """
-import argparse
-import pathlib
-
 import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import cwbvh  # noqa: E402
+import example_args  # noqa: E402
 
-ap = argparse.ArgumentParser()
-ap.add_argument("scene", nargs="?", default=str(pathlib.Path(__file__).resolve().parents[3] / "shared/scenes/sponza_dabrovic.glb"))
-ap.add_argument("--view", default=None)
-ap.add_argument("-o", "--output", default="depth.png")
-args = ap.parse_args()
-path = pathlib.Path(args.scene)
-if path.suffix != ".cwbvh":  # compile a mesh once, next to the output
-    path = pathlib.Path(args.output).with_name(path.stem + ".cwbvh")
-    path.exists() or cwbvh.compile(args.scene, path)
+args, path = example_args.parse("depth.png")
 
 # --- the user code: open, make camera rays, trace, save ---
 scene = cwbvh.open(path)

@@ -6,25 +6,15 @@ usage: PYTHONPATH=build/python /usr/bin/python3 examples/python/lidar_scan.py \
            [SCENE.glb|SCENE.cwbvh] [--view NAME] [-o lidar.png]
 Default scene: ../shared/scenes/sponza_dabrovic.glb (y up; compiled next to the PNG on first use).
 """
-import argparse
-import pathlib
-
 import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import cwbvh  # noqa: E402
+import example_args  # noqa: E402
 
-ap = argparse.ArgumentParser()
-ap.add_argument("scene", nargs="?", default=str(pathlib.Path(__file__).resolve().parents[3] / "shared/scenes/sponza_dabrovic.glb"))
-ap.add_argument("--view", default=None)
-ap.add_argument("-o", "--output", default="lidar.png")
-args = ap.parse_args()
-path = pathlib.Path(args.scene)
-if path.suffix != ".cwbvh":  # compile a mesh once, next to the output
-    path = pathlib.Path(args.output).with_name(path.stem + ".cwbvh")
-    path.exists() or cwbvh.compile(args.scene, path)
+args, path = example_args.parse("lidar.png")
 
 # --- the user code: a sensor at the view's eye, one ray per channel and azimuth step ---
 scene = cwbvh.open(path)
