@@ -63,6 +63,17 @@ def test_compile_errors_carry_cwbvhc_message(tmp_path, content):
     assert isinstance(e.value, RuntimeError) and e.value.status
 
 
+def test_compile_refuses_to_overwrite_an_input(tmp_path):
+    src = tmp_path / "mesh.obj"
+    src.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    before = src.read_bytes()
+    for out in (src, tmp_path / "." / "mesh.obj", tmp_path):
+        with pytest.raises(cwbvh.Error) as e:
+            cwbvh.compile(src, out)
+        assert str(e.value) == cwbvhc_error(src, "-o", out) and e.value.status == "bad input"
+    assert src.read_bytes() == before
+
+
 def test_compile_option_errors(tmp_path):
     with pytest.raises(TypeError, match="unexpected option 'alpha'"):
         cwbvh.compile("x.obj", tmp_path / "o.cwbvh", alpha=1)
