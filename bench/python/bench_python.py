@@ -11,6 +11,7 @@ Writes DIR/results.json, DIR/table.md and DIR/throughput.png.
 """
 
 import argparse
+import importlib.util
 import json
 import os
 import pathlib
@@ -73,7 +74,10 @@ def main():
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     work = pathlib.Path(tempfile.mkdtemp(prefix="cwbvh-pybench-", dir="/dev/shm" if os.path.isdir("/dev/shm") else None))
-    shim = None if args.no_open3d else shim_path(work)
+    has_open3d = importlib.util.find_spec("open3d") is not None
+    if not has_open3d and not args.no_open3d:
+        print("open3d is not installed (Debian: python3-open3d): no Open3D columns", flush=True)
+    shim = None if args.no_open3d or not has_open3d else shim_path(work)
     results = {"machine": "%s, %d cores" % (platform.processor() or platform.machine(), os.cpu_count()),
                "size": args.size, "repeat": args.repeat, "load_average_at_start": os.getloadavg(), "scenes": {}}
     for name in args.scenes.split(","):

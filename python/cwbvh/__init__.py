@@ -223,8 +223,12 @@ class Scene:
         if stream is None:
             stream = o.stream if o.stream is not None else _arrays.LEGACY_DEFAULT_STREAM
         n = o.shape[0]
-        buf = self._h.trace_device(o.ptr, o.strides[0], 0 if d is None else d.ptr, 0 if d is None else d.strides[0],
-                                   n, tmin, tmax, stream, bool(any_hit), bool(watertight))
+        def row_stride(view, cols):  # a single row's stride is arbitrary (often 0): any value >= its width works
+            return view.strides[0] if view.shape[0] > 1 else 4 * cols
+
+        buf = self._h.trace_device(o.ptr, row_stride(o, 8 if d is None else 3), 0 if d is None else d.ptr,
+                                   0 if d is None else row_stride(d, 3), n, tmin, tmax, stream, bool(any_hit),
+                                   bool(watertight))
         del o, d  # the inputs' capsules/objects may go: the work is ordered on `stream`
         device = self._h.device_id
 

@@ -106,7 +106,9 @@ std::shared_ptr<DeviceBuffer> trace_device(const SceneHandle& h, uintptr_t org, 
         if (n == 0) return out;
         const Ray* rays = reinterpret_cast<const Ray*>(org);
         void* scratch = nullptr;
-        if (dir || org_row != int64_t(sizeof(Ray))) {
+        // In place only with 32-byte rows at a 16-byte aligned address (the kernels load a Ray as two
+        // 16-byte vectors); anything else is packed.
+        if (dir || org_row != int64_t(sizeof(Ray)) || org % 16 != 0) {
             CWBVH_CUDA_CHECK(cudaMallocAsync(&scratch, n * sizeof(Ray), s));
             auto* base = static_cast<char*>(scratch);
             constexpr auto d2d = cudaMemcpyDeviceToDevice;

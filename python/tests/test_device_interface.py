@@ -130,6 +130,12 @@ def test_device_input_errors(fake_scene, rays, make, error, match):
         fake_scene.trace(make(rays))
 
 
+def test_single_row_stride(fake_scene, rays):
+    one = np.lib.stride_tricks.as_strided(rays[:1], strides=(0, 4))
+    fake_scene.trace(FakeCAI(one))
+    assert fake_scene._h.calls[-1]["org_row"] == 32 and fake_scene._h.calls[-1]["n"] == 1
+
+
 def test_mixed_host_and_device(fake_scene, rays):
     with pytest.raises(TypeError, match="both be host arrays or both device arrays"):
         fake_scene.trace(FakeCAI(np.ascontiguousarray(rays[:, 0:3])), rays[:, 4:7])
