@@ -16,6 +16,7 @@ import json
 import os
 import pathlib
 import platform
+import shutil
 import statistics
 import subprocess
 import sys
@@ -152,6 +153,7 @@ def main():
             del row["prim"]
         results["scenes"][name] = sres
         print(json.dumps({name: sres["first_ray"]}), flush=True)
+    shutil.rmtree(work, ignore_errors=True)  # compiled scenes and rays in /dev/shm
     results["load_average_at_end"] = os.getloadavg()
     (out / "results.json").write_text(json.dumps(results, indent=1))
     write_table(results, out / "table.md", open3d=shim is not None)

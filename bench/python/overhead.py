@@ -15,6 +15,7 @@ import json
 import os
 import pathlib
 import re
+import shutil
 import statistics
 import subprocess
 import tempfile
@@ -84,6 +85,7 @@ def main():
                       kind, len(rays), threads, row["tool_s_median"], row["python_s_median"],
                       row["ratio_median_of_rounds"], 1e3 * row["added_s_median"], row["python_split_s_median"],
                       row["ratio_split_median_of_rounds"], 1e3 * row["added_split_s_median"]), flush=True)
+    shutil.rmtree(work, ignore_errors=True)  # the compiled scene and ray files in /dev/shm
     report["load_average_at_end"] = os.getloadavg()
     print("load average (1, 5, 15 min): %s at the start, %s at the end" % (report["load_average_at_start"],
                                                                          report["load_average_at_end"]))
