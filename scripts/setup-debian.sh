@@ -8,7 +8,7 @@ PACKAGES=(
   libtbb-dev libxxhash-dev libpng-dev libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev
   glmark2-data assimp-testmodels
-  python3 python3-matplotlib
+  python3 python3-matplotlib python3-dev python3-numpy python3-pybind11 python3-pytest
 )
 
 missing=()

@@ -1,0 +1,240 @@
+"""cwbvh from Python: compile meshes into .cwbvh files, open them in milliseconds (mmap +
+validation, no BVH build) and trace rays on the CPU (multi-threaded, GIL released) or the GPU.
+
+    import cwbvh, numpy as np
+    stats = cwbvh.compile(["bunny.obj"], "bunny.cwbvh")          # cwbvhc's options as keywords
+    scene = cwbvh.open("bunny.cwbvh")
+    rays = cwbvh.camera_rays(scene, width=640, height=480)      # (N, 8) float32
+    t, u, v, prim = scene.trace(rays)                           # prim == cwbvh.MISS: no hit
+
+Copies: (N, 8) float32 rays in the ray-file layout (origin, tmin, direction, tmax), C-contiguous,
+are traced in place; origins + directions (N, 3), or strided rays, are packed once into that
+layout (in C++, in parallel, without the GIL). The hits come back as views of one (N, 4) buffer
+(no copy): t float32 (inf for a miss), u, v float32 barycentrics of v1 and v2, prim uint32 (the
+stored triangle id; MISS for a miss).
+"""
+
+import json as _json
+import math as _math
+import os as _os
+
+import numpy as _np
+
+from . import _arrays, _cwbvh
+from ._cwbvh import Error, built_with_cuda, gpu_status
+from .rays import camera_rays, diffuse_rays, pack_rays, read_hits, read_rays, view, views
+
+__all__ = ["compile", "open", "Scene", "Hits", "Error", "MISS", "camera_rays", "diffuse_rays", "pack_rays",
+           "read_rays", "read_hits", "view", "views", "gpu_status", "built_with_cuda"]
+
+MISS = 0xFFFFFFFF  #: prim of a ray that hit nothing
+
+
+def compile(inputs, output, threads=None, progress=None, **options):  # noqa: A001 - the verb is the API
+    """Compile meshes (glTF/GLB incl. Draco, OBJ, PLY, OFF, STL, DRC) into `output`, as cwbvhc.
+
+    inputs: a path or a list of paths. threads: worker threads (None: all cores; the file is the
+    same for any count). options: cwbvhc's options with '_' for '-': builder ('sbvh' | 'embree'),
+    collapse ('optimal' | 'greedy'), split_alpha, max_reference_growth, collapse_cost_prim,
+    keep_sbvh, keep_mesh, verify. progress: optional callable(phase, fraction, seconds), called on
+    this thread at each phase's start (0.0, None), every 0.2 s while a counted phase runs, and at
+    its end (1.0, seconds). Returns the statistics of `cwbvhc --stats-json` as a dict. Bad input
+    raises cwbvh.Error with cwbvhc's one-line message; bad options raise ValueError/TypeError.
+    """
+    if isinstance(inputs, (str, bytes)) or hasattr(inputs, "__fspath__"):
+        inputs = [inputs]
+    inputs = [str(p) for p in inputs]
+    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
+        raise ValueError("threads must be None or a positive integer, got %r" % (threads,))
+    if progress is not None and not callable(progress):
+        raise TypeError("progress must be callable(phase, fraction, seconds)")
+    _check_output(str(output), inputs)
+    text = _cwbvh.compile(inputs, str(output), threads or 0, options, progress)
+    return _json.loads(text)
+
+
+def _check_output(output, inputs):
+    """cwbvhc's checks of -o before anything is read (tools/cwbvhc/main.cpp, check_output; they
+    are not part of compile() in C++), with its messages: never overwrite an input."""
+    def same(a, b):
+        try:
+            return _os.path.realpath(a) == _os.path.realpath(b) or _os.path.samefile(a, b)
+        except OSError:
+            return False
+    def fail(message):
+        e = Error(message)
+        e.status, e.rule, e.message = "bad input", 0, message
+        raise e
+    for other in inputs:
+        if same(output, other):
+            fail("%s: output is the same file as '%s'; refusing to overwrite it" % (output, other))
+    if _os.path.isdir(output):
+        fail("%s: output is a directory" % output)
+    if _os.path.exists(output) and not _os.path.isfile(output):
+        fail("%s: output exists and is not a regular file" % output)
+
+
+def open(path, deep=False, verify_checksums=True):  # noqa: A001 - cwbvh.open mirrors the loader
+    """Map and validate a .cwbvh file (the loader's checks; deep=True adds `cwbvh validate --deep`'s
+    containment proof). Returns a Scene; an invalid file raises cwbvh.Error with the message
+    `cwbvh validate` prints."""
+    return Scene(_cwbvh.open(str(path), bool(deep), bool(verify_checksums)))
+
+
+class Hits:
+    """What Scene.trace returns: t, u, v, prim (views of `records`, the (N, 4) buffer of Hit
+    records, without a copy) and `stats` (rays, hits, nodes_visited, ..., seconds, zero_copy;
+    CPU only). Unpacks as ``t, u, v, prim = scene.trace(...)``."""
+
+    __slots__ = ("t", "u", "v", "prim", "records", "stats")
+
+    def __init__(self, t, u, v, prim, records, stats):
+        self.t, self.u, self.v, self.prim, self.records, self.stats = t, u, v, prim, records, stats
+
+    def __iter__(self):
+        return iter((self.t, self.u, self.v, self.prim))
+
+    def __len__(self):
+        return len(self.t)
+
+    @property
+    def hit(self):
+        """Boolean mask of the rays that hit (host results only)."""
+        return self.prim != MISS
+
+
+def _threads(threads):
+    if threads is None:
+        return 0
+    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1 or threads > 1024:
+        raise ValueError("threads must be None (all cores) or an integer in [1, 1024], got %r" % (threads,))
+    return threads
+
+
+def _interval(tmin, tmax):
+    tmin = 0.0 if tmin is None else float(tmin)
+    tmax = _math.inf if tmax is None else float(tmax)
+    if _math.isnan(tmin) or _math.isnan(tmax) or tmin > tmax:
+        raise ValueError("tmin and tmax must be numbers with tmin <= tmax, got %r and %r" % (tmin, tmax))
+    return tmin, tmax
+
+
+class Scene:
+    """An open .cwbvh file (cwbvh.open). Thread-safe: any number of threads may trace at once.
+    close() (or leaving a ``with`` block) releases the Scene's mapping; traces in flight and
+    arrays from vertices()/indices() keep it until they end."""
+
+    def __init__(self, handle):
+        self._h = handle
+
+    def _handle(self):
+        if self._h.closed:
+            raise ValueError("%s: the Scene is closed" % self._h.path)
+        return self._h
+
+    @property
+    def path(self):
+        return self._h.path
+
+    @property
+    def closed(self):
+        return self._h.closed
+
+    @property
+    def info(self):
+        """Counts, bounds, build statistics (BILD) and sections of the file, as a dict."""
+        return self._handle().info()
+
+    def vertices(self):
+        """The stored mesh's vertices (V, 3) float32, read-only, zero-copy (files compiled with
+        keep_mesh=True; empty otherwise)."""
+        return self._handle().vertices()
+
+    def indices(self):
+        """The stored mesh's triangles (T, 3) uint32: row i is stored triangle i (a hit's prim)."""
+        return self._handle().indices()
+
+    def close(self):
+        self._h.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __repr__(self):
+        state = "closed" if self.closed else "%d nodes" % self.info["nodes"]
+        return "<cwbvh.Scene %r (%s)>" % (self.path, state)
+
+    def to_device(self, device=-1):
+        """Upload the traversal sections to the GPU once (device -1: the current one). Raises
+        cwbvh.Error when there is no usable GPU (gpu_status() says why)."""
+        self._handle().to_device(int(device))
+        return self
+
+    @property
+    def on_device(self):
+        return self._handle().on_device
+
+    def trace(self, origins, directions=None, tmin=None, tmax=None, any_hit=False, watertight=True, threads=None,
+              stream=None):
+        """Trace rays; returns Hits (t, u, v, prim).
+
+        origins, directions: float32 arrays (N, 3); or origins alone as (N, 8) rays in the
+        ray-file layout (origin, tmin, direction, tmax), which carry their own tmin/tmax.
+        tmin, tmax: the interval of (N, 3) rays (default 0 and inf). any_hit: stop at the first
+        hit found (occlusion). watertight: Woop et al.'s test (default) or the fast one.
+        threads: CPU threads (None: all cores). Host arrays are traced on the CPU without the
+        GIL. Device arrays (__cuda_array_interface__ or DLPack: CuPy, PyTorch, Numba, ...) are
+        traced on the GPU after to_device(), on `stream` (an int handle or a stream object;
+        default: the array's CUDA-array-interface stream, else the legacy default stream), and
+        the results are device arrays of the caller's library (DeviceArray otherwise).
+        """
+        if self._h.closed:
+            raise ValueError("%s: the Scene is closed" % self._h.path)
+        packed = directions is None
+        o_name = "rays" if packed else "origins"
+        if packed and (tmin is not None or tmax is not None):
+            raise ValueError("rays (N, 8) carry their own tmin and tmax; pass tmin/tmax only with (N, 3) "
+                             "origins and directions")
+        tmin, tmax = _interval(tmin, tmax)
+        stream = _arrays.stream_handle(stream)
+        o_dev = _arrays.device_view(origins, o_name, stream)
+        d_dev = None if packed else _arrays.device_view(directions, "directions", stream)
+        if not packed and (o_dev is None) != (d_dev is None):
+            raise TypeError("origins and directions must both be host arrays or both device arrays")
+        if o_dev is not None:
+            return self._trace_device(origins, o_dev, d_dev, tmin, tmax, any_hit, watertight, stream)
+        o = _arrays.host_array(origins, o_name)
+        d = None if packed else _arrays.host_array(directions, "directions")
+        stats = {}
+        records = self._h.trace_host(o, d, tmin, tmax, bool(any_hit), bool(watertight), _threads(threads), stats)
+        return Hits(records[:, 0], records[:, 1], records[:, 2], records.view(_np.uint32)[:, 3], records, stats)
+
+    def _trace_device(self, reference, o, d, tmin, tmax, any_hit, watertight, stream):
+        _arrays.check_device_rays(o, "origins" if d is not None else "rays", 3 if d is not None else 8)
+        if d is not None:
+            _arrays.check_device_rays(d, "directions", 3)
+            if d.shape[0] != o.shape[0]:
+                raise ValueError("origins and directions differ in length: %d vs %d" % (o.shape[0], d.shape[0]))
+        if not self._h.on_device:
+            raise ValueError("%s: the Scene is not on the GPU: call Scene.to_device() first" % self.path)
+        if stream is None:
+            stream = o.stream if o.stream is not None else _arrays.LEGACY_DEFAULT_STREAM
+        n = o.shape[0]
+        def row_stride(view, cols):  # a single row's stride is arbitrary (often 0): any value >= its width works
+            return view.strides[0] if view.shape[0] > 1 else 4 * cols
+
+        buf = self._h.trace_device(o.ptr, row_stride(o, 8 if d is None else 3), 0 if d is None else d.ptr,
+                                   0 if d is None else row_stride(d, 3), n, tmin, tmax, stream, bool(any_hit),
+                                   bool(watertight))
+        del o, d  # the inputs' capsules/objects may go: the work is ordered on `stream`
+        device = self._h.device_id
+
+        def column(offset, typestr):
+            a = _arrays.DeviceArray(buf, buf.ptr + offset, (n,), (16,), typestr, device, stream)
+            return _arrays.like(a, reference)
+
+        records = _arrays.like(_arrays.DeviceArray(buf, buf.ptr, (n, 4), (16, 4), "<f4", device, stream), reference)
+        return Hits(column(0, "<f4"), column(4, "<f4"), column(8, "<f4"), column(12, "<u4"), records, {})
