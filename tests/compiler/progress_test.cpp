@@ -14,6 +14,7 @@
 #include "compiler/cli_support.h"
 #include "cwbvh/compiler/compile.h"
 #include "cwbvh/compiler/progress.h"
+#include "scene_corpus.h"
 
 namespace fs = std::filesystem;
 using namespace cwbvh::compiler;
@@ -152,8 +153,8 @@ TEST(CompileProgress, TerminalPhaseLineShowsPercentages) {
     GTEST_SKIP() << "two single-threaded dragon compiles: run in the Release pass, not under ASan";
 #endif
     if (std::system("command -v script >/dev/null 2>&1") != 0) GTEST_SKIP() << "util-linux script not installed";
-    const std::string dragon = std::string(CWBVH_SHARED_SCENES_DIR) + "/dragon.glb";
-    if (!fs::exists(dragon)) GTEST_SKIP() << dragon << " not present (scene corpus)";
+    const std::string dragon = cwbvh::test::corpus_scene("dragon.glb");
+    CWBVH_REQUIRE_SCENE(dragon);
     const auto dir = cwbvh::test::temp_dir("progress_tty");
     const std::string out = (dir / "tty.cwbvh").string(), quiet = (dir / "quiet.cwbvh").string();
     const fs::path captured = dir / "terminal.txt";

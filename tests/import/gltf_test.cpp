@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "import/import_test_util.h"
+#include "scene_corpus.h"
 
 namespace cwbvh::compiler::test {
 namespace {
@@ -495,7 +496,7 @@ TEST(GltfAssimp, DracoEngineMatchesItsUncompressedTriangleCount) {
 // Shared real scenes.
 // ---------------------------------------------------------------------------
 
-const std::string kScenes = CWBVH_SHARED_SCENES_DIR;
+const std::string kScenes = ::cwbvh::test::scene_corpus_dir();
 
 void expect_bounds_near(const Aabb& a, const Aabb& b, float tol) {
     for (int k = 0; k < 3; ++k) {
@@ -507,7 +508,7 @@ void expect_bounds_near(const Aabb& a, const Aabb& b, float tol) {
 TEST(GltfScenes, BunnyObjGlbAndDracoAgree) {
     const std::string obj = kScenes + "/bunny.obj", glb = kScenes + "/bunny.glb",
                       drc = kScenes + "/bunny_draco.glb";
-    if (!exists(obj) || !exists(glb) || !exists(drc)) GTEST_SKIP() << "shared scenes absent";
+    for (const std::string& f : {obj, glb, drc}) CWBVH_REQUIRE_SCENE(f);
     const auto o = import_files({obj}), g = import_files({glb}), d = import_files({drc});
     ASSERT_TRUE(o.ok) << o.error;
     ASSERT_TRUE(g.ok) << g.error;
@@ -523,7 +524,7 @@ TEST(GltfScenes, BunnyObjGlbAndDracoAgree) {
 
 TEST(GltfScenes, DragonObjAndGlbAgree) {
     const std::string obj = kScenes + "/dragon_res4.obj", glb = kScenes + "/dragon_res4.glb";
-    if (!exists(obj) || !exists(glb)) GTEST_SKIP() << "shared scenes absent";
+    for (const std::string& f : {obj, glb}) CWBVH_REQUIRE_SCENE(f);
     const auto o = import_files({obj}), g = import_files({glb});
     ASSERT_TRUE(o.ok) << o.error;
     ASSERT_TRUE(g.ok) << g.error;
@@ -540,7 +541,7 @@ TEST(GltfScenes, DragonObjAndGlbAgree) {
 
 TEST(GltfScenes, DracoCg57CountsMatchSceneNotes) {
     const std::string f = kScenes + "/fg_cg57_draco.glb";
-    if (!exists(f)) GTEST_SKIP();
+    CWBVH_REQUIRE_SCENE(f);
     const auto r = import_files({f});
     ASSERT_TRUE(r.ok) << r.error;
     EXPECT_EQ(r.scene.input_triangles, 180063u);
@@ -549,7 +550,7 @@ TEST(GltfScenes, DracoCg57CountsMatchSceneNotes) {
 
 TEST(GltfScenes, MergeGlbAndObj) {
     const std::string obj = kScenes + "/dragon_res4.obj", glb = kScenes + "/bunny.glb";
-    if (!exists(obj) || !exists(glb)) GTEST_SKIP();
+    for (const std::string& f : {obj, glb}) CWBVH_REQUIRE_SCENE(f);
     const auto r = import_files({glb, obj});
     ASSERT_TRUE(r.ok) << r.error;
     ASSERT_EQ(r.scene.triangle_count(), 69666u + 11102u);
@@ -572,7 +573,7 @@ std::string read_all(const std::string& p) {
 
 TEST(Draco, DrcFileDecodesAndGarbageIsRejected) {
     const std::string glb = kScenes + "/bunny_draco.glb";
-    if (!exists(glb)) GTEST_SKIP();
+    CWBVH_REQUIRE_SCENE(glb);
     // The compressed bufferView is a complete Draco stream; cut it out of the
     // GLB (trailing bytes after the stream are ignored by the decoder).
     const std::string bytes = read_all(glb);
@@ -598,7 +599,7 @@ TEST(Draco, DrcFileDecodesAndGarbageIsRejected) {
 
 TEST(Draco, CorruptDracoInsideGlbIsRejected) {
     const std::string glb = kScenes + "/bunny_draco.glb";
-    if (!exists(glb)) GTEST_SKIP();
+    CWBVH_REQUIRE_SCENE(glb);
     std::string bytes = read_all(glb);
     const size_t at = bytes.find("DRACO");
     ASSERT_NE(at, std::string::npos);

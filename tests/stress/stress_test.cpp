@@ -25,6 +25,7 @@
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/ray_gen.h"
 #include "stress/stress_support.h"
+#include "scene_corpus.h"
 
 namespace cwbvh::stress {
 namespace {
@@ -321,7 +322,7 @@ TEST_F(StressTest, NeedlesSliversStacksDuplicates) {
 }
 
 void real_scene(const std::string& path, const std::string& name, size_t n_random, uint32_t cam) {
-    if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not present";
+    if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not installed";  // corpus scenes: checked by the caller
     const auto t0 = std::chrono::steady_clock::now();
     File f;
     std::string err;
@@ -334,10 +335,12 @@ void real_scene(const std::string& path, const std::string& name, size_t n_rando
 
 TEST_F(StressTest, Bunny) { real_scene("/usr/share/glmark2/models/bunny.obj", "bunny", 2000, 40); }
 TEST_F(StressTest, DragonRes4) {
-    real_scene(std::string(CWBVH_SHARED_SCENES_DIR) + "/dragon_res4.glb", "dragon_res4", 3000, 48);
+    CWBVH_REQUIRE_SCENE(::cwbvh::test::corpus_scene("dragon_res4.glb"));
+    real_scene(::cwbvh::test::corpus_scene("dragon_res4.glb"), "dragon_res4", 3000, 48);
 }
 TEST_F(StressTest, DragonRes2) {
-    real_scene(std::string(CWBVH_SHARED_SCENES_DIR) + "/dragon_res2.glb", "dragon_res2", 800, 24);
+    CWBVH_REQUIRE_SCENE(::cwbvh::test::corpus_scene("dragon_res2.glb"));
+    real_scene(::cwbvh::test::corpus_scene("dragon_res2.glb"), "dragon_res2", 800, 24);
 }
 
 }  // namespace

@@ -32,6 +32,7 @@
 #include "cwbvh/kernels/traverse.h"
 #include "cwbvh/kernels/traverse_bvh2.h"
 #include "cwbvh/oracle/oracle.h"
+#include "scene_corpus.h"
 #include "traverse/test_scenes.h"
 
 namespace cwbvh::test {
@@ -325,10 +326,10 @@ std::vector<Ray> bounce(const std::vector<Ray>& rays, const std::vector<Hit>& hi
 
 TEST(HitDistance, SponzaCpuBvh2AgreesWithCwbvh) {
     namespace fs = std::filesystem;
-    const fs::path scene = fs::path(CWBVH_SHARED_SCENES_DIR) / "sponza_dabrovic.obj";
+    const fs::path scene = corpus_scene("sponza_dabrovic.obj");
     const fs::path cwbvhc = fs::path(CWBVH_BIN_DIR) / "cwbvhc";
-    if (!fs::exists(scene)) GTEST_SKIP() << scene << " absent";
-    if (!fs::exists(cwbvhc)) GTEST_SKIP() << cwbvhc << " not built";
+    CWBVH_REQUIRE_SCENE(scene.string());
+    ASSERT_TRUE(fs::exists(cwbvhc)) << cwbvhc << " not built";
     const fs::path out =
         fs::path(::testing::TempDir()) / ("hit_distance_sponza_" + std::to_string(::getpid()) + ".cwbvh");
     const std::string cmd = "\"" + cwbvhc.string() + "\" \"" + scene.string() + "\" -o \"" + out.string() +
