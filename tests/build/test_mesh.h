@@ -10,9 +10,12 @@
 #include <string>
 
 #include "cwbvh/compiler/model.h"
+#include "scene_corpus.h"
 
 namespace cwbvh::compiler::test {
 
+/// False when the file cannot be opened, a vertex does not parse, a face index is out of
+/// range, or there is no face: a broken scene file is the test's failure, not a reason to skip.
 inline bool read_obj(const std::string& path, Scene& scene) {
     std::ifstream in(path);
     if (!in) return false;
@@ -24,7 +27,7 @@ inline bool read_obj(const std::string& path, Scene& scene) {
         ls >> tag;
         if (tag == "v") {
             Vec3 v{};
-            ls >> v[0] >> v[1] >> v[2];
+            if (!(ls >> v[0] >> v[1] >> v[2])) return false;
             scene.vertices.push_back(v);
         } else if (tag == "f") {
             std::vector<uint32_t> idx;
@@ -32,6 +35,7 @@ inline bool read_obj(const std::string& path, Scene& scene) {
             while (ls >> tok) {
                 long i = std::strtol(tok.c_str(), nullptr, 10);
                 if (i < 0) i = long(scene.vertices.size()) + i + 1;
+                if (i < 1 || i > long(scene.vertices.size())) return false;
                 idx.push_back(uint32_t(i - 1));
             }
             for (size_t k = 2; k < idx.size(); ++k) {
@@ -81,8 +85,7 @@ inline Scene sliver_scene(int n, uint64_t seed = 9) {
     return s;
 }
 
-inline std::string scene_path(const char* name) {
-    return std::string(CWBVH_SHARED_SCENES_DIR) + "/" + name;
-}
+/// A scene of the corpus (CWBVH_REQUIRE_SCENE, scene_corpus.h, before reading it).
+inline std::string scene_path(const char* name) { return ::cwbvh::test::corpus_scene(name); }
 
 }  // namespace cwbvh::compiler::test
