@@ -2,7 +2,6 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
-#include <filesystem>
 
 #include "../result_util.h"
 #include "build/test_mesh.h"
@@ -64,12 +63,7 @@ void expect_deterministic(const Scene& s, const std::string& what) {
 }
 
 TEST(Embree, DeterministicAndValidOnRealMesh) {
-    expect_deterministic(test::random_soup(20000, 3, 0.1f), "random soup");
-    const std::string path = test::scene_path("dragon_res4.obj");
-    CWBVH_REQUIRE_SCENE(path);
-    Scene s;
-    ASSERT_TRUE(test::read_obj(path, s)) << path << " is there but does not parse";
-    expect_deterministic(s, path);
+    test::on_soup_then_corpus_obj(test::random_soup(20000, 3, 0.1f), "dragon_res4.obj", expect_deterministic);
 }
 
 }  // namespace

@@ -4,7 +4,6 @@
 
 #include <chrono>
 #include <cstring>
-#include <filesystem>
 
 #include "../result_util.h"
 #include "build/test_mesh.h"
@@ -173,10 +172,9 @@ TEST(Sbvh, SahFormula) {
 
 TEST(Sbvh, RealMeshes) {
     for (const char* name : {"dragon_res4.obj", "bunny.obj"}) {
-        const std::string path = test::scene_path(name);
-        CWBVH_REQUIRE_SCENE(path);
         Scene s;
-        ASSERT_TRUE(test::read_obj(path, s)) << path << " is there but does not parse";
+        test::read_corpus_obj(name, s);
+        if (test::corpus_obj_missing_or_broken()) return;
         const auto t0 = std::chrono::steady_clock::now();
         BinaryBvh bvh;
         std::string error;
@@ -209,12 +207,7 @@ void expect_deterministic(const Scene& s, const std::string& what) {
 }
 
 TEST(Sbvh, DeterministicAcrossThreadCounts) {
-    expect_deterministic(test::random_soup(50000, 3, 0.1f), "random soup");
-    const std::string path = test::scene_path("bunny.obj");
-    CWBVH_REQUIRE_SCENE(path);
-    Scene s;
-    ASSERT_TRUE(test::read_obj(path, s)) << path << " is there but does not parse";
-    expect_deterministic(s, path);
+    test::on_soup_then_corpus_obj(test::random_soup(50000, 3, 0.1f), "bunny.obj", expect_deterministic);
 }
 
 }  // namespace

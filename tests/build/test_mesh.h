@@ -85,7 +85,30 @@ inline Scene sliver_scene(int n, uint64_t seed = 9) {
     return s;
 }
 
-/// A scene of the corpus (CWBVH_REQUIRE_SCENE, scene_corpus.h, before reading it).
+/// A scene of the corpus (scene_corpus.h).
 inline std::string scene_path(const char* name) { return ::cwbvh::test::corpus_scene(name); }
+
+/// Reads corpus scene `name` into `s`: skips or fails as CWBVH_REQUIRE_SCENE says when it is
+/// not there, fails when it is there but does not parse. The caller returns when
+/// corpus_obj_missing_or_broken() says so afterwards.
+inline void read_corpus_obj(const char* name, Scene& s) {
+    const std::string path = scene_path(name);
+    CWBVH_REQUIRE_SCENE(path);
+    ASSERT_TRUE(read_obj(path, s)) << path << " is there but does not parse";
+}
+inline bool corpus_obj_missing_or_broken() {
+    return ::testing::Test::IsSkipped() || ::testing::Test::HasFatalFailure();
+}
+
+/// Runs `check(scene, what)` on `soup`, then on corpus scene `name` (read_corpus_obj): the
+/// generated scene is tested whether or not the corpus is there, never instead of it.
+template <class Check>
+void on_soup_then_corpus_obj(const Scene& soup, const char* name, Check check) {
+    check(soup, std::string("random soup"));
+    Scene s;
+    read_corpus_obj(name, s);
+    if (corpus_obj_missing_or_broken()) return;
+    check(s, std::string(name));
+}
 
 }  // namespace cwbvh::compiler::test

@@ -28,27 +28,14 @@ using Edges = std::vector<std::pair<uint32_t, int>>;
 SceneData tree(const Edges& edges) {
     SceneData s;
     for (uint32_t i = 0; i < edges.size(); ++i) {
-        CwbvhNode n{};
-        for (int a = 0; a < 3; ++a) n.e[a] = 127;  // scale 1, origin 0
-        n.tri_base = i;
-        n.meta[7] = make_meta_leaf(1, 0);
-        for (int a = 0; a < 3; ++a) n.q_hi[a][7] = 1;
+        CwbvhNode n = test::unit_leaf_node(i, 7);
         const auto [base, internal] = edges[i];
-        for (int c = 0; c < internal && c < 7; ++c) {  // slot 7 holds the leaf
-            n.imask = uint8_t(n.imask | (1u << c));
-            n.meta[c] = make_meta_internal(c);
-            for (int a = 0; a < 3; ++a) n.q_hi[a][c] = 1;
-        }
+        for (int c = 0; c < internal && c < 7; ++c) test::set_unit_internal(n, c);  // slot 7 holds the leaf
         if (internal > 0) n.child_base = base;
         s.nodes.push_back(n);
-        TriangleRecord t{};
-        t.v1[0] = 1.0f;
-        t.v2[1] = 1.0f;
-        t.prim = i;
-        s.triangles.push_back(t);
+        test::add_unit_triangle(s, i);
     }
-    s.source_ranges.push_back(SourceRange{0, uint32_t(s.triangles.size()), 0, 0, 0, 0});
-    s.bounds = {{0, 0, 0}, {1, 1, 0}};
+    test::close_unit_scene(s);
     return s;
 }
 
