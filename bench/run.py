@@ -132,6 +132,7 @@ class Bench:
                 sys.exit("run.py: %s not found: build first (cmake --build %s)" % (p, args.build_dir))
         self.views = load_views(args.views)
         self.work = tempfile.mkdtemp(prefix="cwbvh-bench-")
+        self.failed = []  # scenes whose probe compile failed
         self.rows = {k: [] for k in ("build", "embree_build", "trees", "traffic", "load", "error", "error_meta", "cpu_trace")}
 
     # ---- 1. build -------------------------------------------------------------------------
@@ -301,7 +302,10 @@ class Bench:
                 s = self.compile(mesh, os.path.join(self.work, name + "_probe.cwbvh"), "sbvh", "optimal", 2)
                 tris_hint = s["triangles"]
             except RuntimeError as e:
-                log("skipping %s: %s" % (name, e))
+                # Measured scenes go on; the run fails at the end (main), so a broken compiler
+                # cannot leave a benchmark (or the smoke test) passing on the scenes it could do.
+                log("%s failed to compile: %s" % (name, e))
+                self.failed.append(name)
                 continue
             files = self.bench_build(name, mesh, tris_hint)
             self.bench_embree_build(name, files["main"], tris_hint)
@@ -370,14 +374,19 @@ def main():
     a.cpu_size = 128 if a.quick else 256
     names = a.scenes or (QUICK_SCENES if a.quick else [n for n, _ in DEFAULT_SCENES])
     scenes = []
+    missing = []
     for item in names:
         n, m = resolve_scene(item)
         if m and os.path.exists(m):
             scenes.append((n, m))
         else:
             log("scene %s not found: skipped" % item)
+            missing.append(item)
     if not scenes:
         sys.exit("run.py: no scenes")
+    # A scene named on the command line, or any scene under CI (CI=true), must be there.
+    if missing and (a.scenes or os.environ.get("CI") == "true"):
+        sys.exit("run.py: scene(s) not found: %s" % ", ".join(missing))
     b = Bench(a)
     meta = b.go(scenes)
     plot_py = os.path.join(os.path.dirname(os.path.abspath(__file__)), "plot.py")
@@ -394,6 +403,8 @@ def main():
         if subprocess.run([sys.executable, plot_py, "--tables-only", a.out]).returncode != 0:
             sys.exit("run.py: writing tables failed")
     log("done in %.1f s: %s" % (meta["wall_seconds"], a.out))
+    if b.failed:
+        sys.exit("run.py: %d scene(s) failed to compile: %s" % (len(b.failed), ", ".join(b.failed)))
 
 
 if __name__ == "__main__":

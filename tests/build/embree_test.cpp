@@ -2,7 +2,6 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
-#include <filesystem>
 
 #include "../result_util.h"
 #include "build/test_mesh.h"
@@ -51,10 +50,9 @@ TEST(Embree, SpatialSplitsHappenOnSlivers) {
     EXPECT_GT(bvh.spatial_splits, 0u);
 }
 
-TEST(Embree, DeterministicAndValidOnRealMesh) {
-    Scene s;
-    const std::string path = test::scene_path("dragon_res4.obj");
-    if (!std::filesystem::exists(path) || !test::read_obj(path, s)) s = test::random_soup(20000, 3, 0.1f);
+/// build_embree is valid and the same for 1 and 2 threads on `s`.
+void expect_deterministic(const Scene& s, const std::string& what) {
+    SCOPED_TRACE(what);
     SbvhConfig one, two;
     one.threads = 1;
     two.threads = 2;
@@ -62,6 +60,10 @@ TEST(Embree, DeterministicAndValidOnRealMesh) {
     ASSERT_EQ(a.nodes.size(), b.nodes.size());
     EXPECT_EQ(std::memcmp(a.nodes.data(), b.nodes.data(), a.nodes.size() * sizeof(BinaryNode)), 0);
     EXPECT_EQ(a.references, b.references);
+}
+
+TEST(Embree, DeterministicAndValidOnRealMesh) {
+    test::on_soup_then_corpus_obj(test::random_soup(20000, 3, 0.1f), "dragon_res4.obj", expect_deterministic);
 }
 
 }  // namespace

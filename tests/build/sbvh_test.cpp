@@ -4,7 +4,6 @@
 
 #include <chrono>
 #include <cstring>
-#include <filesystem>
 
 #include "../result_util.h"
 #include "build/test_mesh.h"
@@ -171,17 +170,11 @@ TEST(Sbvh, SahFormula) {
     EXPECT_NEAR(sah_cost_binary(bvh, 1.0f, 0.3f), 1.0 + 2 * double(0.3f) / 3.0, 1e-12);
 }
 
-Scene load_or_skip(const char* name) {
-    Scene s;
-    const std::string path = test::scene_path(name);
-    if (!std::filesystem::exists(path) || !test::read_obj(path, s)) return Scene{};
-    return s;
-}
-
 TEST(Sbvh, RealMeshes) {
     for (const char* name : {"dragon_res4.obj", "bunny.obj"}) {
-        const Scene s = load_or_skip(name);
-        if (s.triangle_count() == 0) GTEST_SKIP() << name << " not found";
+        Scene s;
+        test::read_corpus_obj(name, s);
+        if (test::corpus_obj_missing_or_broken()) return;
         const auto t0 = std::chrono::steady_clock::now();
         BinaryBvh bvh;
         std::string error;
@@ -197,9 +190,9 @@ TEST(Sbvh, RealMeshes) {
     }
 }
 
-TEST(Sbvh, DeterministicAcrossThreadCounts) {
-    Scene s = load_or_skip("bunny.obj");
-    if (s.triangle_count() == 0) s = test::random_soup(50000, 3, 0.1f);
+/// The SBVH of `s` is the same for 1, 2 and the default number of threads, and has spatial splits.
+void expect_deterministic(const Scene& s, const std::string& what) {
+    SCOPED_TRACE(what);
     SbvhConfig one, two, dflt;
     one.threads = 1;
     two.threads = 2;
@@ -211,6 +204,10 @@ TEST(Sbvh, DeterministicAcrossThreadCounts) {
     EXPECT_TRUE(identical(a, b));
     EXPECT_TRUE(identical(a, c));
     EXPECT_GT(a.spatial_splits, 0u);
+}
+
+TEST(Sbvh, DeterministicAcrossThreadCounts) {
+    test::on_soup_then_corpus_obj(test::random_soup(50000, 3, 0.1f), "bunny.obj", expect_deterministic);
 }
 
 }  // namespace

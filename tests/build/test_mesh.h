@@ -10,9 +10,12 @@
 #include <string>
 
 #include "cwbvh/compiler/model.h"
+#include "scene_corpus.h"
 
 namespace cwbvh::compiler::test {
 
+/// False when the file cannot be opened, a vertex does not parse, a face index is out of
+/// range, or there is no face: a broken scene file is the test's failure, not a reason to skip.
 inline bool read_obj(const std::string& path, Scene& scene) {
     std::ifstream in(path);
     if (!in) return false;
@@ -24,7 +27,7 @@ inline bool read_obj(const std::string& path, Scene& scene) {
         ls >> tag;
         if (tag == "v") {
             Vec3 v{};
-            ls >> v[0] >> v[1] >> v[2];
+            if (!(ls >> v[0] >> v[1] >> v[2])) return false;
             scene.vertices.push_back(v);
         } else if (tag == "f") {
             std::vector<uint32_t> idx;
@@ -32,6 +35,7 @@ inline bool read_obj(const std::string& path, Scene& scene) {
             while (ls >> tok) {
                 long i = std::strtol(tok.c_str(), nullptr, 10);
                 if (i < 0) i = long(scene.vertices.size()) + i + 1;
+                if (i < 1 || i > long(scene.vertices.size())) return false;
                 idx.push_back(uint32_t(i - 1));
             }
             for (size_t k = 2; k < idx.size(); ++k) {
@@ -81,8 +85,30 @@ inline Scene sliver_scene(int n, uint64_t seed = 9) {
     return s;
 }
 
-inline std::string scene_path(const char* name) {
-    return std::string(CWBVH_SHARED_SCENES_DIR) + "/" + name;
+/// A scene of the corpus (scene_corpus.h).
+inline std::string scene_path(const char* name) { return ::cwbvh::test::corpus_scene(name); }
+
+/// Reads corpus scene `name` into `s`: skips or fails as CWBVH_REQUIRE_SCENE says when it is
+/// not there, fails when it is there but does not parse. The caller returns when
+/// corpus_obj_missing_or_broken() says so afterwards.
+inline void read_corpus_obj(const char* name, Scene& s) {
+    const std::string path = scene_path(name);
+    CWBVH_REQUIRE_SCENE(path);
+    ASSERT_TRUE(read_obj(path, s)) << path << " is there but does not parse";
+}
+inline bool corpus_obj_missing_or_broken() {
+    return ::testing::Test::IsSkipped() || ::testing::Test::HasFatalFailure();
+}
+
+/// Runs `check(scene, what)` on `soup`, then on corpus scene `name` (read_corpus_obj): the
+/// generated scene is tested whether or not the corpus is there, never instead of it.
+template <class Check>
+void on_soup_then_corpus_obj(const Scene& soup, const char* name, Check check) {
+    check(soup, std::string("random soup"));
+    Scene s;
+    read_corpus_obj(name, s);
+    if (corpus_obj_missing_or_broken()) return;
+    check(s, std::string(name));
 }
 
 }  // namespace cwbvh::compiler::test

@@ -9,6 +9,7 @@
 
 #include "compiler/cli_support.h"
 #include "cwbvh/loader/loader.h"
+#include "scene_corpus.h"
 
 namespace fs = std::filesystem;
 
@@ -37,8 +38,8 @@ TEST(FileSize, BunnyAtMost55BytesPerInputTriangle) {
 }
 
 TEST(FileSize, SponzaAtMost55BytesPerInputTriangleWithTheDefaultBudget) {
-    const std::string sponza = std::string(CWBVH_SHARED_SCENES_DIR) + "/sponza_dabrovic.glb";
-    if (!fs::exists(sponza)) GTEST_SKIP() << sponza << " not present (scene corpus)";
+    const std::string sponza = cwbvh::test::corpus_scene("sponza_dabrovic.glb");
+    CWBVH_REQUIRE_SCENE(sponza);
     const auto dir = cwbvh::test::temp_dir("filesize");
     const std::string out = (dir / "sponza.cwbvh").string();
     const std::string roomy = (dir / "sponza_g1.cwbvh").string();

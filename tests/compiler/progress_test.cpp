@@ -3,17 +3,22 @@
 // and on a terminal the phase line shows percentages and stops cleanly.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <mutex>
 #include <regex>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "../result_util.h"
 #include "compiler/cli_support.h"
 #include "cwbvh/compiler/compile.h"
+#include "cwbvh/compiler/phase_line.h"
 #include "cwbvh/compiler/progress.h"
+#include "scene_corpus.h"
 
 namespace fs = std::filesystem;
 using namespace cwbvh::compiler;
@@ -144,16 +149,132 @@ TEST(CompileProgress, ProgressBatchPublishesInStepsAndRetracts) {
     EXPECT_EQ(p.total.load(), 3u);
 }
 
-/// cwbvhc on a pseudo-terminal (util-linux `script`): the phase line shows rising percentages
-/// in 0..100 for a phase that runs over a second, nothing follows the summary, and the file is
-/// the one a --quiet run through pipes writes.
-TEST(CompileProgress, TerminalPhaseLineShowsPercentages) {
+/// A clock the test moves by hand, and what the phase line wrote.
+struct FakeTerminal {
+    PhaseLine::Clock::time_point now{std::chrono::seconds(1000)};
+    std::mutex mutex;
+    std::string text;
+    PhaseLine::Write write() {
+        return [this](const std::string& s) {
+            const std::lock_guard<std::mutex> lock(mutex);
+            text += s;
+        };
+    }
+    PhaseLine::Now clock() {
+        return [this] {
+            const std::lock_guard<std::mutex> lock(mutex);
+            return now;
+        };
+    }
+    std::string take() {
+        const std::lock_guard<std::mutex> lock(mutex);
+        std::string t;
+        t.swap(text);
+        return t;
+    }
+};
+
+TEST(PhaseLineClock, PercentagesOnlyAfterTheDelayAndOnlyWhenTheyMove) {
+    using std::chrono::milliseconds;
+    FakeTerminal term;
+    Progress progress;
+    PhaseLine line(progress, term.write(), term.clock(), /*ticker=*/false);
+    progress.reset(200);
+    line.on_phase("sbvh", false, 0.0);
+    EXPECT_EQ(term.take(), "\r\033[K[cwbvhc] sbvh ...");
+    progress.add(50);
+    line.tick();
+    term.now += PhaseLine::kDelay;
+    line.tick();  // exactly the delay: not yet
+    EXPECT_EQ(term.take(), "");
+    term.now += milliseconds(1);
+    line.tick();
+    EXPECT_EQ(term.take(), "\r\033[K[cwbvhc] sbvh        25%");
+    line.tick();  // same percentage: nothing
+    term.now += PhaseLine::kTick;
+    line.tick();
+    EXPECT_EQ(term.take(), "");
+    progress.add(149);  // 199 of 200: rounded down
+    line.tick();
+    EXPECT_EQ(term.take(), "\r\033[K[cwbvhc] sbvh        99%");
+    progress.add(1);
+    line.tick();
+    EXPECT_EQ(term.take(), "\r\033[K[cwbvhc] sbvh       100%");
+    line.on_phase("sbvh", true, 1.25);
+    EXPECT_EQ(term.take(), "\r\033[K[cwbvhc] sbvh          1.250 s\n");
+    term.now += std::chrono::seconds(10);
+    line.tick();  // no phase running
+    EXPECT_EQ(term.take(), "");
+
+    // A new phase starts its own delay and shows its first percentage even if it equals
+    // the last one shown; an uncounted phase (total 0) shows none.
+    progress.reset(4);
+    line.on_phase("collapse", false, 0.0);
+    term.take();
+    progress.add(4);
+    term.now += PhaseLine::kDelay;
+    line.tick();
+    EXPECT_EQ(term.take(), "");
+    term.now += milliseconds(1);
+    line.tick();
+    EXPECT_EQ(term.take(), "\r\033[K[cwbvhc] collapse   100%");
+    line.on_phase("collapse", true, 2.0);
+    progress.reset(0);
+    line.on_phase("encode", false, 0.0);
+    term.take();
+    term.now += std::chrono::seconds(5);
+    line.tick();
+    EXPECT_EQ(term.take(), "");
+
+    // Over-counting is clamped; after stop() nothing is written.
+    progress.reset(10);
+    line.on_phase("slots", false, 0.0);
+    term.take();
+    progress.add(25);
+    term.now += std::chrono::seconds(2);
+    line.tick();
+    EXPECT_EQ(term.take(), "\r\033[K[cwbvhc] slots      100%");
+    line.stop();
+    line.on_phase("slots", true, 1.0);
+    progress.reset(10);
+    line.tick();
+    EXPECT_EQ(term.take(), "");
+}
+
+TEST(PhaseLineClock, TheTickerThreadShowsThePercentageOnItsOwn) {
+    // The ticker runs every kTick of real time but reads the injected clock: once the fake
+    // clock is past the delay, a percentage must appear without any tick() from the test.
+    // (Waits for it, up to 30 s: the outcome does not depend on the machine's speed.)
+    FakeTerminal term;
+    Progress progress;
+    PhaseLine line(progress, term.write(), term.clock());
+    progress.reset(3);
+    line.on_phase("sbvh", false, 0.0);
+    progress.add(1);
+    {
+        const std::lock_guard<std::mutex> lock(term.mutex);
+        term.now += PhaseLine::kDelay + std::chrono::milliseconds(1);
+    }
+    std::string text;
+    for (int i = 0; i < 3000 && text.find("33%") == std::string::npos; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        const std::lock_guard<std::mutex> lock(term.mutex);
+        text = term.text;
+    }
+    EXPECT_NE(text.find("\r\033[K[cwbvhc] sbvh        33%"), std::string::npos) << text;
+    line.stop();
+}
+
+/// cwbvhc on a pseudo-terminal (util-linux `script`): the phase line shows every phase, any
+/// percentages are in 0..100 and rise within a phase, nothing follows the summary, and the
+/// file is the one a --quiet run through pipes writes.
+TEST(CompileProgress, TerminalPhaseLineOnAPseudoTerminal) {
 #if defined(__SANITIZE_ADDRESS__)
     GTEST_SKIP() << "two single-threaded dragon compiles: run in the Release pass, not under ASan";
 #endif
     if (std::system("command -v script >/dev/null 2>&1") != 0) GTEST_SKIP() << "util-linux script not installed";
-    const std::string dragon = std::string(CWBVH_SHARED_SCENES_DIR) + "/dragon.glb";
-    if (!fs::exists(dragon)) GTEST_SKIP() << dragon << " not present (scene corpus)";
+    const std::string dragon = cwbvh::test::corpus_scene("dragon.glb");
+    CWBVH_REQUIRE_SCENE(dragon);
     const auto dir = cwbvh::test::temp_dir("progress_tty");
     const std::string out = (dir / "tty.cwbvh").string(), quiet = (dir / "quiet.cwbvh").string();
     const fs::path captured = dir / "terminal.txt";
@@ -188,13 +309,10 @@ TEST(CompileProgress, TerminalPhaseLineShowsPercentages) {
         last = pct;
         sbvh_lines += phase == "sbvh";
     }
-    std::smatch seconds;
-    ASSERT_TRUE(std::regex_search(text, seconds, std::regex("seconds sbvh +([0-9.]+)"))) << text;
-    if (std::stod(seconds[1]) > 1.5) {
-        EXPECT_GT(sbvh_lines, 0) << "no percentage in a " << seconds[1] << " s phase";
-    } else {
-        std::printf("sbvh took %s s: too fast to check for a percentage\n", std::string(seconds[1]).c_str());
-    }
+    // When a percentage shows depends on how long the phase takes on this machine: the
+    // timing rules are tested with an injected clock (PhaseLine tests above); here only
+    // what did show is checked.
+    std::printf("sbvh percentage lines on the terminal: %d\n", sbvh_lines);
 
     const auto r = cwbvh::test::run_tool("cwbvhc", {dragon, "-o", quiet, "--quiet"});
     ASSERT_EQ(r.exit_code, 0) << r.err;

@@ -14,29 +14,15 @@ namespace {
 SceneData wide_chain(uint32_t levels) {
     SceneData s;
     for (uint32_t i = 0; i < levels; ++i) {
-        CwbvhNode n{};
-        for (int a = 0; a < 3; ++a) {
-            n.p[a] = 0.0f;
-            n.e[a] = 127;  // scale 1
-        }
-        n.tri_base = i;
-        n.meta[1] = make_meta_leaf(1, 0);
-        for (int a = 0; a < 3; ++a) n.q_hi[a][1] = 1;
+        CwbvhNode n = test::unit_leaf_node(i, 1);
         if (i + 1 < levels) {
-            n.imask = 1;
+            test::set_unit_internal(n, 0);
             n.child_base = i + 1;
-            n.meta[0] = make_meta_internal(0);
-            for (int a = 0; a < 3; ++a) n.q_hi[a][0] = 1;
         }
         s.nodes.push_back(n);
-        TriangleRecord t{};
-        t.v1[0] = 1.0f;
-        t.v2[1] = 1.0f;
-        t.prim = i;
-        s.triangles.push_back(t);
+        test::add_unit_triangle(s, i);
     }
-    s.source_ranges.push_back(SourceRange{0, uint32_t(s.triangles.size()), 0, 0, 0, 0});
-    s.bounds = {{0, 0, 0}, {1, 1, 0}};
+    test::close_unit_scene(s);
     return s;
 }
 

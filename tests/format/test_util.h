@@ -16,6 +16,7 @@
 #include "cwbvh/compiler/synthetic.h"
 #include "cwbvh/format/checksum.h"
 #include "cwbvh/format/format.h"
+#include "cwbvh/format/node_decode.h"
 #include "cwbvh/format/scene_data.h"
 #include "cwbvh/format/validate.h"
 #include "cwbvh/format/writer.h"
@@ -87,6 +88,38 @@ void edit_element(std::vector<uint8_t>& f, uint32_t type, uint64_t i, F edit) {
     edit(v);
     std::memcpy(f.data() + e.offset + i * sizeof(T), &v, sizeof v);
     reseal(f);
+}
+
+// Hand-built trees of unit boxes (depth_test, cycle_test): every node at scale 1 and origin
+// 0, every box [0,1]^3 in plane bytes, every triangle (0,0,0) (1,0,0) (0,1,0).
+
+/// A node whose slot `leaf_slot` is a leaf of one triangle, TRIS record `tri`.
+inline CwbvhNode unit_leaf_node(uint32_t tri, int leaf_slot) {
+    CwbvhNode n{};
+    for (int a = 0; a < 3; ++a) n.e[a] = 127;  // scale 1
+    n.tri_base = tri;
+    n.meta[leaf_slot] = make_meta_leaf(1, 0);
+    for (int a = 0; a < 3; ++a) n.q_hi[a][leaf_slot] = 1;
+    return n;
+}
+/// Makes slot `slot` of `n` an internal child (child_base is the caller's).
+inline void set_unit_internal(CwbvhNode& n, int slot) {
+    n.imask = uint8_t(n.imask | (1u << slot));
+    n.meta[slot] = make_meta_internal(slot);
+    for (int a = 0; a < 3; ++a) n.q_hi[a][slot] = 1;
+}
+/// Appends the unit triangle as TRIS record `prim`.
+inline void add_unit_triangle(SceneData& s, uint32_t prim) {
+    TriangleRecord t{};
+    t.v1[0] = 1.0f;
+    t.v2[1] = 1.0f;
+    t.prim = prim;
+    s.triangles.push_back(t);
+}
+/// One PMAP range over every TRIS record, and the unit triangles' bounds.
+inline void close_unit_scene(SceneData& s) {
+    s.source_ranges.push_back(SourceRange{0, uint32_t(s.triangles.size()), 0, 0, 0, 0});
+    s.bounds = {{0, 0, 0}, {1, 1, 0}};
 }
 
 inline Result check(const std::vector<uint8_t>& f, bool checksums = true) {

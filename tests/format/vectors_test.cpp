@@ -4,8 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <sstream>
 
 #include "cwbvh/format/describe.h"
@@ -120,17 +122,35 @@ TEST(Vectors, LeafRangesIsFormat11WithABv2lSection) {
     for (int c : covered) EXPECT_EQ(c, 1);
 }
 
-TEST(FuzzCorpus, ReplaysThroughTheValidator) {
-    size_t files = 0;
+/// The verdict a corpus file's name states, as in spec/vectors: "invalid_<rule>_..." breaks
+/// that rule; any other name is a valid file. 0: valid.
+uint32_t stated_rule(const std::string& stem) {
+    if (stem.rfind("invalid_", 0) != 0) return 0;
+    return uint32_t(std::strtoul(stem.c_str() + 8, nullptr, 10));
+}
+
+TEST(FuzzCorpus, EveryFileGetsTheVerdictItsNameStates) {
+    size_t files = 0, invalid = 0;
     for (const auto& e : std::filesystem::directory_iterator(kCorpus)) {
+        SCOPED_TRACE(e.path().filename().string());
         const std::string bytes = read_text(e.path().string());
         std::unique_ptr<uint8_t[]> buf(new uint8_t[bytes.size() + 1]);
         std::memcpy(buf.get(), bytes.data(), bytes.size());
         const Result r = validate({buf.get(), bytes.size()});
-        EXPECT_TRUE(r.ok() || !r.message.empty()) << e.path();
+        const uint32_t rule = stated_rule(e.path().stem().string());
+        if (rule == 0) {
+            EXPECT_TRUE(r.ok()) << r.describe();
+        } else {
+            ++invalid;
+            EXPECT_FALSE(r.ok()) << "expected rule " << rule;
+            EXPECT_EQ(r.rule, rule) << r.describe();
+            EXPECT_FALSE(r.message.empty());
+        }
         ++files;
     }
     EXPECT_GE(files, 3u);
+    EXPECT_GT(invalid, 0u);
+    EXPECT_LT(invalid, files);
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 // and - only when a CUDA device is present - GPU vs CPU traces of a synthetic scene.
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -15,6 +16,7 @@
 #include "cwbvh/kernels/gpu_stack.h"
 #include "cwbvh/kernels/gpu_trace.h"
 #include "cwbvh/kernels/trace.h"
+#include "cwbvh/kernels/warp_model.h"
 
 namespace cwbvh {
 namespace {
@@ -46,15 +48,35 @@ TEST(GpuStack, SpillsPastSharedEntriesAndPopsInLifoOrder) {
 }
 
 TEST(GpuStack, SharedLayoutIsConflictFreeForAWarpAtOneDepth) {
-    // 32 lanes at the same depth touch 32 consecutive 8-byte words: byte offsets
-    // lane*8 + entry*256, i.e. two 128-byte wavefronts without a repeated bank.
-    for (int entry = 0; entry < kGpuSharedStackEntries; ++entry) {
+    // 32 lanes' GpuStacks over one warp's shared block, as the kernel sets them up (lane l
+    // at base + l, stride 32), each pushing to the same depth: the bytes each push wrote
+    // must be two 128-byte wavefronts of 16 lanes without a repeated bank (4-byte banks,
+    // 32 of them; an 8-byte entry takes two). Found by where each push landed, not by the
+    // formula the layout is meant to follow.
+    constexpr int kLanes = 32;
+    std::vector<PackedEntry> shared(size_t(kGpuSharedStackEntries) * kLanes, PackedEntry{0u, 0u});
+    std::vector<GpuStack> stacks;
+    for (int lane = 0; lane < kLanes; ++lane) stacks.emplace_back(shared.data() + lane, kLanes);
+    for (int depth = 0; depth < kGpuSharedStackEntries; ++depth) {
+        std::vector<size_t> byte(kLanes, SIZE_MAX);
+        for (int lane = 0; lane < kLanes; ++lane) {
+            const uint32_t mark = 0x80000000u | uint32_t(depth << 8) | uint32_t(lane);
+            ASSERT_TRUE(stacks[size_t(lane)].push(StackEntry{mark, 0u}));
+            for (size_t k = 0; k < shared.size(); ++k)
+                if (shared[k].base == mark) {
+                    EXPECT_EQ(byte[size_t(lane)], SIZE_MAX) << "written twice";
+                    byte[size_t(lane)] = k * sizeof(PackedEntry);
+                }
+            ASSERT_NE(byte[size_t(lane)], SIZE_MAX) << "depth " << depth << " lane " << lane << " not in shared";
+        }
         for (int half = 0; half < 2; ++half) {
             uint32_t banks = 0;
+            const size_t wavefront = byte[size_t(half * 16)] / 128;
             for (int lane = half * 16; lane < half * 16 + 16; ++lane) {
-                const size_t byte = (size_t(entry) * 32 + size_t(lane)) * sizeof(PackedEntry);
-                const uint32_t b0 = uint32_t(byte / 4) % 32, b1 = (b0 + 1) % 32;
-                EXPECT_EQ(banks & ((1u << b0) | (1u << b1)), 0u);
+                const size_t b = byte[size_t(lane)];
+                EXPECT_EQ(b / 128, wavefront) << "depth " << depth << " lane " << lane << ": outside its wavefront";
+                const uint32_t b0 = uint32_t(b / 4) % 32, b1 = (b0 + 1) % 32;
+                EXPECT_EQ(banks & ((1u << b0) | (1u << b1)), 0u) << "depth " << depth << " lane " << lane;
                 banks |= (1u << b0) | (1u << b1);
             }
         }
@@ -62,13 +84,27 @@ TEST(GpuStack, SharedLayoutIsConflictFreeForAWarpAtOneDepth) {
 }
 
 TEST(GpuPolicy, LostWorkCounter) {
-    EXPECT_EQ(kDynamicFetchNd, 4);
-    EXPECT_EQ(kDynamicFetchNw, 16);
-    EXPECT_EQ(update_lost_work(0, 32), 0);   // full warp: no credit
-    EXPECT_EQ(update_lost_work(0, 28), 0);   // Nd idle lanes are free
-    EXPECT_EQ(update_lost_work(0, 20), 8);   // 12 idle - 4
-    EXPECT_EQ(update_lost_work(8, 20), 16);  // reaches Nw after two such steps
-    EXPECT_EQ(update_lost_work(10, 32), 6);  // a full step pays back credit
+    // The rule, whatever Nd and Nw are: lost += idle lanes - Nd, floored at 0.
+    constexpr int kNd = kDynamicFetchNd, kNw = kDynamicFetchNw;
+    static_assert(kNd >= 1 && kNd < 32 && kNw >= 1, "the paper's counter needs 0 < Nd < 32 and Nw > 0");
+    EXPECT_EQ(update_lost_work(0, 32), 0);                  // full warp: no credit
+    EXPECT_EQ(update_lost_work(0, 32 - kNd), 0);            // Nd idle lanes are free
+    EXPECT_EQ(update_lost_work(0, 32 - kNd - 1), 1);        // one more is lost
+    EXPECT_EQ(update_lost_work(5, 32 - kNd - 3), 8);        // accumulates
+    EXPECT_EQ(update_lost_work(kNd - 1, 32), 0);            // a full step pays back up to Nd, floored
+    EXPECT_EQ(update_lost_work(kNd + 2, 32), 2);
+    EXPECT_EQ(update_lost_work(7, 20, 0), 19);              // the nd argument (warp model) replaces Nd
+    // A warp with one idle lane beyond Nd per step refills (lost >= Nw) after exactly Nw steps.
+    int lost = 0, steps = 0;
+    while (lost < kNw) {
+        lost = update_lost_work(lost, 32 - kNd - 1);
+        ++steps;
+        ASSERT_LE(steps, kNw);
+    }
+    EXPECT_EQ(steps, kNw);
+    // The warp model starts from the kernel's constants.
+    EXPECT_EQ(WarpModelOptions{}.fetch_nd, kNd);
+    EXPECT_EQ(WarpModelOptions{}.fetch_nw, kNw);
 }
 
 TEST(GpuPolicy, PostponeBelowTwentyPercentOfActiveLanes) {

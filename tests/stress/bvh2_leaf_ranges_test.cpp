@@ -25,6 +25,7 @@
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/ray_gen.h"
 #include "cwbvh/kernels/warp_model.h"
+#include "scene_corpus.h"
 #include "stress/stress_support.h"
 
 namespace cwbvh::stress {
@@ -305,8 +306,8 @@ TEST_F(Bvh2LeafRanges, GeneratedScenes) {
 }
 
 TEST_F(Bvh2LeafRanges, Bunny) {
-    const std::string path = std::string(CWBVH_SHARED_SCENES_DIR) + "/bunny.obj";
-    if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not present";
+    const std::string path = ::cwbvh::test::corpus_scene("bunny.obj");
+    CWBVH_REQUIRE_SCENE(path);
     File f;
     std::string err;
     ASSERT_TRUE(compile_and_open(path, "bunny-bv2l", f, err)) << err;

@@ -2,9 +2,11 @@
 // shared-edge meshes; defined answers for degenerate rays; extreme scales.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "cwbvh/kernels/cpu_trace.h"
@@ -50,15 +52,39 @@ std::vector<Ray> random_rays(size_t n, float lo, float hi, uint32_t seed) {
     return rays;
 }
 
+// Rays with an exact hit within the oracle's tolerance of tmin or tmax ("near an end": the
+// traversal may take or leave that hit) get the weaker check of compare_near_end instead of
+// the exact one; each test bounds their fraction (max_near_end), so that a change that
+// makes most rays ambiguous cannot pass by checking few.
 struct Agreement {
-    uint64_t rays = 0, skipped = 0, hit_mismatch = 0, prim_mismatch = 0, t_mismatch = 0;
-    uint64_t errors() const { return hit_mismatch + prim_mismatch + t_mismatch; }
+    uint64_t rays = 0, skipped = 0, hit_mismatch = 0, prim_mismatch = 0, t_mismatch = 0, near_end_errors = 0;
+    uint64_t errors() const { return hit_mismatch + prim_mismatch + t_mismatch + near_end_errors; }
+    double skipped_fraction() const { return rays == 0 ? 0.0 : double(skipped) / double(rays); }
 };
 
-void compare(const OracleResult& o, const Hit& h, Agreement& a) {
+/// What a near-end answer must still be: a reported hit is a real hit of that triangle at
+/// its t (within tol), inside the range (within tol), and not behind the closest hit that
+/// is clearly inside; a miss only when no hit is clearly inside the range.
+void compare_near_end(const Ray& r, const std::vector<TriangleRecord>& tris, const OracleResult& o, const Hit& h,
+                      Agreement& a) {
+    ++a.skipped;
+    const long double tol = o.tol, tmin = r.tmin, tmax = r.tmax;
+    const bool inside = o.hit && o.t > tmin + tol && o.t < tmax - tol;
+    if (h.prim == kMissPrim) {
+        a.near_end_errors += inside;
+        return;
+    }
+    long double t;
+    const bool real = oracle_hits_prim(r, tris.data(), tris.size(), h.prim, t) &&
+                      std::fabs((long double)h.t - t) <= tol && t >= tmin - tol && t <= tmax + tol;
+    a.near_end_errors += !real || (inside && t > o.t + tol);
+}
+
+void compare(const Ray& r, const std::vector<TriangleRecord>& tris, const OracleResult& o, const Hit& h,
+             Agreement& a) {
     ++a.rays;
     if (o.near_range_end) {
-        ++a.skipped;
+        compare_near_end(r, tris, o, h, a);
         return;
     }
     const bool hit = h.prim != kMissPrim;
@@ -78,15 +104,23 @@ Agreement closest_vs_oracle(const Scene& s, const std::vector<Ray>& rays, bool b
         Hit h;
         const TraceStatus st = bvh2 ? s.trace2<kTest, HitMode::kClosest>(r, h) : s.trace<kTest, HitMode::kClosest>(r, h);
         EXPECT_EQ(st, TraceStatus::kOk);
-        compare(oracle_trace(r, s.input.data(), s.input.size()), h, a);
+        compare(r, s.input, oracle_trace(r, s.input.data(), s.input.size()), h, a);
     }
     return a;
 }
 
 void print(const char* what, const Agreement& a) {
-    std::printf("%-44s rays %6llu  skipped(range end) %llu  hit/miss %llu  prim %llu  t %llu\n", what,
-                (unsigned long long)a.rays, (unsigned long long)a.skipped, (unsigned long long)a.hit_mismatch,
+    std::printf("%-44s rays %6llu  near an end %llu (%.1f%%, %llu wrong)  hit/miss %llu  prim %llu  t %llu\n", what,
+                (unsigned long long)a.rays, (unsigned long long)a.skipped, 100.0 * a.skipped_fraction(),
+                (unsigned long long)a.near_end_errors, (unsigned long long)a.hit_mismatch,
                 (unsigned long long)a.prim_mismatch, (unsigned long long)a.t_mismatch);
+}
+
+/// At most `max_near_end` of the rays may have had only the near-end check.
+void expect_near_end_at_most(const Agreement& a, double max_near_end, const std::string& what) {
+    EXPECT_GT(a.rays, 0u) << what;
+    EXPECT_LE(a.skipped_fraction(), max_near_end)
+        << what << ": " << a.skipped << " of " << a.rays << " rays near a range end (only the weak check)";
 }
 
 TEST(Traverse, BuilderMakesValidTree) {
@@ -117,17 +151,21 @@ TEST(Traverse, ClosestHitMatchesOracle) {
     EXPECT_EQ(ww.errors(), 0u);
     EXPECT_EQ(bw.errors(), 0u);
     EXPECT_LE(wf.errors(), rays.size() / 1000);
+    for (const Agreement* a : {&ww, &wf, &bw}) expect_near_end_at_most(*a, 0.01, "soup");
 }
 
 TEST(Traverse, AnyHitReturnsRealHit) {
     const Scene s(random_soup(2000, 100, 4, 3));
     const auto rays = random_rays(4000, -20, 120, 4);
-    uint64_t oracle_hits = 0, missed = 0, fake = 0;
+    uint64_t oracle_hits = 0, missed = 0, fake = 0, near_end = 0;
     for (const Ray& r : rays) {
         const OracleResult o = oracle_trace(r, s.input.data(), s.input.size());
         Hit h;
         EXPECT_EQ((s.trace<TriangleTest::kWatertight, HitMode::kAny>(r, h)), TraceStatus::kOk);
-        if (o.near_range_end) continue;
+        if (o.near_range_end) {  // the hit near the end may count or not: not checked, but bounded
+            ++near_end;
+            continue;
+        }
         oracle_hits += o.hit;
         if (o.hit && h.prim == kMissPrim) ++missed;
         if (h.prim != kMissPrim) {
@@ -139,9 +177,12 @@ TEST(Traverse, AnyHitReturnsRealHit) {
     }
     std::printf("any-hit: %llu oracle hits, %llu missed, %llu not real\n", (unsigned long long)oracle_hits,
                 (unsigned long long)missed, (unsigned long long)fake);
+    std::printf("any-hit: %llu of %llu rays near a range end, unchecked\n", (unsigned long long)near_end,
+                (unsigned long long)rays.size());
     EXPECT_GT(oracle_hits, 100u);
     EXPECT_EQ(missed, 0u);
     EXPECT_EQ(fake, 0u);
+    EXPECT_LE(near_end, rays.size() / 100);
 }
 
 // Rays aimed exactly at vertices and edge midpoints of a 64 x 64 bumpy grid (integer
@@ -289,10 +330,15 @@ TEST(Traverse, ExtremeScalesAndOffsetAgreeWithOracle) {
     struct Case {
         const char* name;
         double scale, offset, size;
+        double max_near_end;  ///< fraction of rays near a range end (measured + margin)
     };
-    for (const Case& cs : {Case{"scale 1e-20", 1e-20, 0, 2}, Case{"scale 1e20", 1e20, 0, 2},
-                           Case{"offset 1e7, 1e-2 detail", 1e-3, 1e7, 1e-2 / 1e-3},
-                           Case{"offset 1e7, 1 detail", 1.0, 1e7, 4}}) {
+    // Measured near-end fractions (2026-11-26): 0 in the first three cases, 393 of 1500
+    // (26.2%) in the last, where a float step is 1 and the oracle's tolerance (2^-18 of
+    // |org| + extent) about 40 units of t, so every ray whose first hit is that close to its
+    // origin is near tmin. Those rays get compare_near_end's check (0 wrong), not none.
+    for (const Case& cs : {Case{"scale 1e-20", 1e-20, 0, 2, 0.01}, Case{"scale 1e20", 1e20, 0, 2, 0.01},
+                           Case{"offset 1e7, 1e-2 detail", 1e-3, 1e7, 1e-2 / 1e-3, 0.01},
+                           Case{"offset 1e7, 1 detail", 1.0, 1e7, 4, 0.30}}) {
         auto soup = random_soup(1500, 100, float(cs.size), 21);
         for (auto& t : soup)
             for (float* v : {t.v0, t.v1, t.v2})
@@ -309,6 +355,8 @@ TEST(Traverse, ExtremeScalesAndOffsetAgreeWithOracle) {
         std::snprintf(buf, sizeof buf, "CWBVH fast, %s", cs.name);
         print(buf, f);
         EXPECT_LE(w.errors(), rays.size() / 500) << cs.name;
+        expect_near_end_at_most(w, cs.max_near_end, cs.name);
+        expect_near_end_at_most(f, cs.max_near_end, cs.name);
     }
 }
 

@@ -15,6 +15,7 @@
 #include "cwbvh/compiler/collapse.h"
 #include "cwbvh/compiler/encode.h"
 #include "cwbvh/format/node_decode.h"
+#include "scene_corpus.h"
 #include "wide/wide_test_util.h"
 
 namespace cwbvh::compiler {
@@ -375,8 +376,8 @@ TEST(Encode, ErrorsNameTheSameFailureForAnyThreadCount) {
 }
 
 TEST(Encode, Bunny) {
-    const std::string path = std::string(CWBVH_SHARED_SCENES_DIR) + "/bunny.obj";
-    if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not found";
+    const std::string path = ::cwbvh::test::corpus_scene("bunny.obj");
+    CWBVH_REQUIRE_SCENE(path);
     Scene scene;
     ASSERT_TRUE(wide_test::read_obj(path, scene));
     ASSERT_GT(scene.triangle_count(), 60000u);

@@ -11,6 +11,7 @@
 #include "cwbvh/compiler/collapse.h"
 #include "cwbvh/compiler/encode.h"
 #include "cwbvh/compiler/sah_report.h"
+#include "scene_corpus.h"
 #include "wide/wide_test_util.h"
 
 namespace cwbvh::compiler {
@@ -90,8 +91,8 @@ TEST(SahReport, DecodedTermsBoundTheExactOnes) {
 // decoded figure is below the default C_prim = 0.3 one, which trades SAH for
 // wider nodes.
 TEST(SahReport, BunnyCostModelMatchingTheReportLowersIt) {
-    const std::string path = std::string(CWBVH_SHARED_SCENES_DIR) + "/bunny.obj";
-    if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not found";
+    const std::string path = ::cwbvh::test::corpus_scene("bunny.obj");
+    CWBVH_REQUIRE_SCENE(path);
     Scene scene;
     ASSERT_TRUE(wide_test::read_obj(path, scene));
     BinaryBvh binary;

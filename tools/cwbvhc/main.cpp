@@ -4,21 +4,18 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <chrono>
-#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <mutex>
 #include <new>
 #include <optional>
 #include <string>
 #include <system_error>
-#include <thread>
 #include <vector>
 
 #include "cwbvh/compiler/compile.h"
+#include "cwbvh/compiler/phase_line.h"
 #include "cwbvh/compiler/progress.h"
 
 namespace {
@@ -102,74 +99,6 @@ std::string check_output(const std::string& output, const std::vector<std::strin
     return "";
 }
 
-/// The terminal's phase line (only when stderr is a terminal and not --quiet): "<phase> ..." when
-/// a phase starts, "<phase> <seconds> s" when it ends and, once a counted phase has run for more
-/// than kDelay, "<phase> <percent>%" from a ticker thread every kTick while the percentage moves.
-/// Every write to stderr happens under mutex_; stop() joins the ticker, after which it writes nothing.
-class PhaseLine {
-public:
-    explicit PhaseLine(const cwbvh::compiler::Progress& progress) : progress_(progress), ticker_([this] { tick(); }) {}
-    ~PhaseLine() { stop(); }
-    PhaseLine(const PhaseLine&) = delete;
-    PhaseLine& operator=(const PhaseLine&) = delete;
-
-    /// The PhaseCallback: runs on the thread that runs compile().
-    void on_phase(const std::string& phase, bool done, double seconds) {
-        const std::lock_guard<std::mutex> lock(mutex_);
-        if (!done) {
-            std::fprintf(stderr, "\r\033[K[cwbvhc] %s ...", phase.c_str());
-            phase_ = phase;
-            started_ = Clock::now();
-            running_ = true;
-            shown_ = -1;
-        } else {
-            running_ = false;
-            std::fprintf(stderr, "\r\033[K[cwbvhc] %-10s %8.3f s\n", phase.c_str(), seconds);
-        }
-    }
-
-    /// Stops and joins the ticker (idempotent).
-    void stop() {
-        {
-            const std::lock_guard<std::mutex> lock(mutex_);
-            stop_ = true;
-        }
-        wake_.notify_all();
-        if (ticker_.joinable()) ticker_.join();
-    }
-
-private:
-    using Clock = std::chrono::steady_clock;
-    static constexpr std::chrono::milliseconds kDelay{1000}, kTick{200};
-
-    void tick() {
-        std::unique_lock<std::mutex> lock(mutex_);
-        while (!wake_.wait_for(lock, kTick, [this] { return stop_; })) {
-            if (!running_ || Clock::now() - started_ <= kDelay) continue;
-            // Relaxed loads: compile() resets the channel before the start callback, which took
-            // mutex_, so these see this phase's total (or a later one's); clamp whatever they see.
-            const uint64_t total = progress_.total.load(std::memory_order_relaxed);
-            if (total == 0) continue;  // not counted: the start line stays as it is
-            const uint64_t done = progress_.done.load(std::memory_order_relaxed);
-            // Rounded down, so 100 % only once all is done.
-            const int percent = int(std::clamp(100.0 * double(done) / double(total), 0.0, 100.0));
-            if (percent == shown_) continue;
-            shown_ = percent;
-            std::fprintf(stderr, "\r\033[K[cwbvhc] %-10s %3d%%", phase_.c_str(), percent);
-        }
-    }
-
-    const cwbvh::compiler::Progress& progress_;
-    std::mutex mutex_;
-    std::condition_variable wake_;
-    bool stop_ = false;
-    bool running_ = false;  ///< a phase has started and not ended
-    std::string phase_;
-    Clock::time_point started_{};
-    int shown_ = -1;        ///< percentage on the line now (-1: none)
-    std::thread ticker_;    ///< last: starts once everything above is initialised
-};
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -250,7 +179,7 @@ int main(int argc, char** argv) {
     std::optional<PhaseLine> line;
     PhaseCallback on_phase;
     if (tty) {
-        line.emplace(progress);
+        line.emplace(progress, [](const std::string& s) { std::fputs(s.c_str(), stderr); });
         on_phase = [&line](const std::string& phase, bool done, double seconds) {
             line->on_phase(phase, done, seconds);
         };
