@@ -122,9 +122,9 @@ Totals check_scene(const std::string& scene, const File& f, const std::vector<Ra
             }
             {
                 // The GPU lane code: as the BVH2 above (its node test has its own false positives).
-                const bool same = (wt[i].prim == kMissPrim) == (gpu_lanes[i].prim == kMissPrim) &&
-                                  std::memcmp(&wt[i].t, &gpu_lanes[i].t, sizeof(float)) == 0;
-                if (!same) {
+                const bool same_lanes = (wt[i].prim == kMissPrim) == (gpu_lanes[i].prim == kMissPrim) &&
+                                        std::memcmp(&wt[i].t, &gpu_lanes[i].t, sizeof(float)) == 0;
+                if (!same_lanes) {
                     ++tot.model_differ;
                     Tally a, b;
                     classify_closest(r, wt[i], ex, oracle, a);
