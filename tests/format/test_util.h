@@ -122,3 +122,12 @@ inline ToolRun run_cwbvh(const std::string& args) {
 inline size_t count_lines(const std::string& s) { return size_t(std::count(s.begin(), s.end(), '\n')); }
 
 }  // namespace cwbvh::test
+
+/// Expects `result` to fail with rule `id` and a one-line message.
+#define EXPECT_RULE(result, id)                                                   \
+    do {                                                                          \
+        const Result r_ = (result);                                               \
+        EXPECT_EQ(r_.rule, uint32_t(id)) << r_.describe();                        \
+        EXPECT_FALSE(r_.message.empty());                                         \
+        EXPECT_EQ(r_.message.find('\n'), std::string::npos) << "one line";        \
+    } while (0)

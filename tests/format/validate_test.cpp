@@ -18,14 +18,6 @@ using test::reseal;
 using test::set_entry;
 using test::set_header;
 
-#define EXPECT_RULE(result, id)                                                   \
-    do {                                                                          \
-        const Result r_ = (result);                                               \
-        EXPECT_EQ(r_.rule, uint32_t(id)) << r_.describe();                        \
-        EXPECT_FALSE(r_.message.empty());                                         \
-        EXPECT_EQ(r_.message.find('\n'), std::string::npos) << "one line";        \
-    } while (0)
-
 TEST(Validate, AcceptsSyntheticFile) {
     const Result r = check(test::synthetic_file());
     EXPECT_TRUE(r.ok()) << r.describe();
