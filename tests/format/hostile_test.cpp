@@ -1,6 +1,6 @@
 // Issue 21: a crafted-file attack on format 1.1. One test per finding (1-7), each on hostile
 // bytes generated here from a valid synthetic file (no committed blobs). The tool runs go
-// through `timeout`, so a hang shows as exit 124 instead of a stuck suite.
+// through `timeout` (run_cwbvh), so a hang shows as exit 124 instead of a stuck suite.
 #include <gtest/gtest.h>
 
 #include <sys/stat.h>
@@ -25,18 +25,7 @@ using test::entry;
 using test::find_entry;
 using test::header_of;
 
-/// `cwbvh ARGS` with a 20 s limit (exit 124 = it hung), stdout and stderr together.
-test::ToolRun run(const std::string& args) {
-    const std::string cmd = "env -u CWBVH_VIEWS timeout 20 " + std::string(CWBVH_BIN_DIR) + "/cwbvh " + args + " 2>&1";
-    FILE* p = popen(cmd.c_str(), "r");
-    if (p == nullptr) return {-1, ""};
-    std::string out;
-    char buf[4096];
-    size_t n;
-    while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-    const int status = pclose(p);
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
+test::ToolRun run(const std::string& args) { return test::run_cwbvh(args); }
 
 bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
 
