@@ -89,6 +89,21 @@ TEST(Hostile21, Finding1_PmapTotalIsBoundedByTheFile) {
     EXPECT_TRUE(contains(r.message, "D4")) << r.message;
 }
 
+// Finding 1, the tool's edge: an allocation that fails ends as one line and exit 1, not as an
+// uncaught std::bad_alloc (abort, exit 134). 16384 x 16384 rays need 8 GiB; 1 GB of address space.
+TEST(Hostile21, Finding1_OutOfMemoryIsOneLineAndExitOne) {
+#if defined(__SANITIZE_ADDRESS__)
+    GTEST_SKIP() << "AddressSanitizer reserves more address space than the limit allows";
+#endif
+    const std::string scene = test::write_temp("h21_oom.cwbvh", test::synthetic_file());
+    const std::string out = test::temp_dir() + "/h21_oom.rays";
+    const test::ToolRun r = test::run_cwbvh(
+        "rays " + scene + " --primary --width 16384 --height 16384 --camera 0,0,-5,0,0,0,45 -o " + out,
+        "ulimit -v 1000000; ");
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_TRUE(contains(r.out, "cwbvh: error: rays: out of memory")) << r.out;
+}
+
 // Finding 2: File::open opened before checking the type, so a FIFO blocked info, validate and
 // trace forever; --rays FIFO hung, --rays /dev/zero read until memory ran out.
 TEST(Hostile21, Finding2_FifosAndDevicesAreRefusedWithoutBlocking) {

@@ -107,10 +107,11 @@ struct ToolRun {
 
 /// Runs `cwbvh ARGS` from the build's bin folder, with CWBVH_VIEWS unset so the
 /// compiled-in view catalog applies, under `timeout`: a command that hangs (a FIFO
-/// input, issue 21) ends with exit 124 instead of stopping the suite.
-inline ToolRun run_cwbvh(const std::string& args) {
-    const std::string cmd =
-        "env -u CWBVH_VIEWS timeout 120 " + std::string(CWBVH_BIN_DIR) + "/cwbvh " + args + " 2>&1";
+/// input, issue 21) ends with exit 124 instead of stopping the suite. `shell_before`
+/// runs first in the same shell (e.g. "ulimit -v 1000000; ").
+inline ToolRun run_cwbvh(const std::string& args, const std::string& shell_before = "") {
+    const std::string cmd = shell_before + "env -u CWBVH_VIEWS timeout 120 " + std::string(CWBVH_BIN_DIR) +
+                            "/cwbvh " + args + " 2>&1";
     FILE* p = popen(cmd.c_str(), "r");
     if (p == nullptr) return {-1, ""};
     std::string out;

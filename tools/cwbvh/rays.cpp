@@ -86,8 +86,8 @@ int run_rays(int argc, char** argv) {
     if (!path || !out || kind == 0) return error(kExitUsage, usage);
     if (camera_text && view_text) return error(kExitUsage, "rays: --camera and --view exclude each other");
 
-    std::vector<std::string> inputs{path};
-    if (views_path) inputs.push_back(views_path);
+    // The catalog is an input too (--views, $CWBVH_VIEWS or the compiled-in one).
+    const std::vector<std::string> inputs{path, views_path ? std::string(views_path) : default_view_catalog_path()};
     if (const Result r = check_output_path(out, inputs); !r.ok()) return error(kExitBadInput, r.message.c_str());
     auto file = File::open(path, {true, kMaskNodes | kMaskTriangles | kMaskBounds});
     if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
