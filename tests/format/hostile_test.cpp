@@ -225,6 +225,16 @@ TEST(Hostile21, Finding4_BinaryTreeGeometryIsProven) {
     EXPECT_EQ(s.code, 1) << s.out;
     EXPECT_TRUE(contains(s.out, "deep check D6")) << s.out;
 
+    // A tree over a single record: the root's two children are both that leaf (spec 3.6).
+    for (const bool ranges : {true, false}) {
+        SyntheticOptions one;
+        one.triangles = 1;
+        one.bvh2_leaf_ranges = ranges;
+        const std::string p = test::write_temp("h21_one.cwbvh", test::file_bytes(make_synthetic_scene(one)));
+        const test::ToolRun r = run("validate --deep " + p);
+        EXPECT_EQ(r.code, 0) << r.out;
+    }
+
     // The legacy BVH2 section gets the same proof.
     const std::vector<uint8_t> legacy = test::synthetic_file();
     const test::ToolRun l = run("validate --deep " + test::write_temp("h21_bvh2.cwbvh", legacy));

@@ -52,8 +52,8 @@ void set_box(Bvh2Node& n, int c, float x0, float x1) {
     (c == 0 ? n.c0_hi_z : n.c1_hi_z) = 1;
 }
 
-/// Root: child 0 internal (node 1), child 1 the leaf of triangles 3-4 (BV2L; BVH2: node 2).
-/// Node 1: leaves of triangles 0-1 and 2 (BVH2: 0 and node 3 ...). For BVH2 every leaf is one record.
+/// BV2L: the root's child 0 is node 1, child 1 the leaf of records 3-4; node 1 holds the leaves
+/// of records 0-1 and 2. BVH2 (one record per leaf): a chain, node i holding record i.
 std::vector<Bvh2Node> base_tree(bool leaf_ranges) {
     std::vector<Bvh2Node> t;
     if (leaf_ranges) {
