@@ -34,6 +34,7 @@ if [[ "${CWBVH_SKIP_FUZZ:-0}" != "1" ]]; then
         -DCWBVH_SANITIZE=ON -DCWBVH_CUDA=OFF -DCWBVH_BUILD_TESTS=OFF >/dev/null
   cmake --build build-fuzz -j"$JOBS" --target "${FUZZ_TARGETS[@]/#/cwbvh_fuzz_}"
   FUZZ_WORK="$(mktemp -d)"
+  mkdir -p build-fuzz/artifacts
   trap 'rm -rf "$FUZZ_WORK"' EXIT
   # Replay: every committed input once (no mutation), under ASan + UBSan.
   build-fuzz/bin/cwbvh_fuzz_validate tests/fuzz/corpus/* 2>"$FUZZ_WORK/replay.log" ||
@@ -47,11 +48,11 @@ if [[ "${CWBVH_SKIP_FUZZ:-0}" != "1" ]]; then
   printf '\000{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}]}' \
     >"$FUZZ_WORK/import/seed_gltf"
   for t in "${FUZZ_TARGETS[@]}"; do
-    # Crash artifacts land in $FUZZ_WORK; the log's tail shows the input and the stack.
+    # A crashing input is kept in build-fuzz/artifacts/ (the work folder is removed on exit).
     # lsan.supp: OpenMesh's once-per-process log stream (the importer target).
     if ! (cd "$FUZZ_WORK" && LSAN_OPTIONS=suppressions="$ROOT/tests/lsan.supp":print_suppressions=0 \
             "$ROOT/build-fuzz/bin/cwbvh_fuzz_$t" -max_total_time="$FUZZ_SECONDS" -max_len=65536 \
-            -rss_limit_mb=2048 "$t" 2>"$t.log"); then
+            -rss_limit_mb=2048 -artifact_prefix="$ROOT/build-fuzz/artifacts/$t-" "$t" 2>"$t.log"); then
       tail -60 "$FUZZ_WORK/$t.log"
       echo "fuzz target cwbvh_fuzz_$t failed"
       exit 1
