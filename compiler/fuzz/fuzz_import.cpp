@@ -23,9 +23,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         return 0;
     }
     cwbvh::compiler::Scene scene;
-    std::string error;
     std::vector<std::string> warnings;
-    (void)cwbvh::compiler::import_scene({path}, {}, scene, error, warnings);
+    (void)cwbvh::compiler::import_scene({path}, {}, scene, warnings);
     std::remove(path.c_str());
     return 0;
 }

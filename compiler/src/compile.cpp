@@ -82,6 +82,7 @@ Result compile_phases(const CompileOptions& options, CompileStats& stats, const 
     Result r;
     if (!timer.run("import", 0, [&] {
             ImportOptions import_options;
+            import_options.allow_parent_uris = options.allow_parent_uris;
             r = import_scene(options.inputs, import_options, scene, stats.warnings);
             return r.ok();
         }))

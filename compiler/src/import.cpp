@@ -3,9 +3,10 @@
 #include <cctype>
 #include <cstring>
 #include <exception>
-#include <fstream>
+#include <cstdint>
 
 #include "cwbvh/compiler/import.h"
+#include "cwbvh/format/file_io.h"
 
 namespace cwbvh::compiler {
 namespace {
@@ -21,17 +22,29 @@ std::string lower_extension(const std::string& path) {
     return ext;
 }
 
+/// `r` with the "<path>: " prefix of file_io.h's messages removed (import_scene adds the path).
+Result without_path(Result r, const std::string& path) {
+    if (r.message.compare(0, path.size() + 2, path + ": ") == 0) r.message.erase(0, path.size() + 2);
+    return r;
+}
+
 /// Magic first (a .glb or .drc under another name still loads), then the
 /// extension. Returns kUnknown with `error` set when the file cannot be read.
 Format detect(const std::string& path, Result& error) {
-    std::ifstream f(path, std::ios::binary);
-    if (!f) {
-        error = Result::fail(Status::kIoError, 0, "cannot open file");
+    // A regular file only: a FIFO would block the readers and a device such as /dev/zero
+    // named .stl would be read without end. The readers that open the path again (OpenMesh)
+    // come after this check.
+    Expected<RegularFile> f = RegularFile::open(path, false);
+    if (!f.ok()) {
+        error = without_path(f.error(), path);
         return Format::kUnknown;
     }
     char magic[5] = {};
-    f.read(magic, 5);
-    const std::streamsize got = f.gcount();
+    const uint64_t got = std::min<uint64_t>(f->size(), sizeof magic);
+    if (Result r = f->read_exact(magic, got); !r.ok()) {
+        error = without_path(r, path);
+        return Format::kUnknown;
+    }
     if (got >= 4 && std::memcmp(magic, "glTF", 4) == 0) return Format::kGlb;
     if (got >= 5 && std::memcmp(magic, "DRACO", 5) == 0) return Format::kDraco;
     const std::string ext = lower_extension(path);
@@ -61,18 +74,8 @@ Result import_one(const std::string& path, const ImportOptions& options, RawInpu
 }  // namespace
 
 Result read_file_bytes(const std::string& path, std::vector<uint8_t>& bytes) {
-    bytes.clear();
-    std::ifstream f(path, std::ios::binary | std::ios::ate);
-    if (!f) return Result::fail(Status::kIoError, 0, "cannot open file");
-    const std::streamoff size = f.tellg();
-    if (size < 0) return Result::fail(Status::kIoError, 0, "cannot read file");
-    bytes.resize(size_t(size));
-    f.seekg(0);
-    if (size > 0 && !f.read(reinterpret_cast<char*>(bytes.data()), size)) {
-        bytes.clear();
-        return Result::fail(Status::kIoError, 0, "cannot read file");
-    }
-    return Result::success();
+    // Bounded by the size fstat reported; a FIFO or device is refused (file_io.h).
+    return without_path(read_regular_file(path, UINT64_MAX, bytes), path);
 }
 
 Result import_scene(const std::vector<std::string>& paths, const ImportOptions& options, Scene& out,

@@ -12,6 +12,8 @@
 // tinygltf only parses: every accessor, buffer view and index is validated
 // here before it is read (no out-of-bounds read for any input). Sparse
 // accessors are parsed but not applied by tinygltf 2.7; we apply them.
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -42,6 +44,7 @@
 
 #include "cwbvh/compiler/import.h"
 #include "cwbvh/compiler/parallel_exact.h"
+#include "cwbvh/format/file_io.h"
 
 namespace cwbvh::compiler {
 namespace {
@@ -757,6 +760,57 @@ bool GltfReader::run(RawInput& out, std::string& error) {
     return true;
 }
 
+/// tinygltf's file access for external buffers. Its defaults expand the path with wordexp() (which
+/// performs $(...) substitution) and fall back to the current directory; ours take the path as
+/// written and read only a URI that is relative, has no ".." component (unless the option allows
+/// it) and names a regular file (read_regular_file: no FIFO, no device) in the input's folder.
+struct ExternalFiles {
+    std::string prefix;  ///< the base directory tinygltf joins the URI to, with its '/'
+    bool allow_parent = false;
+    std::string refused;  ///< why the first refused URI was refused
+};
+
+/// True when tinygltf's joined path `joined` (prefix + decoded URI) may be read.
+bool uri_allowed(ExternalFiles& x, const std::string& joined) {
+    if (joined.compare(0, x.prefix.size(), x.prefix) != 0) return false;  // the current-directory fallback
+    const std::string uri = joined.substr(x.prefix.size());
+    auto refuse = [&](const std::string& why) {
+        if (x.refused.empty()) x.refused = "buffer URI '" + uri + "' " + why;
+        return false;
+    };
+    if (!uri.empty() && uri[0] == '/') return refuse("is absolute; buffers must lie in the input's folder");
+    if (!x.allow_parent) {
+        size_t start = 0;
+        while (start <= uri.size()) {
+            size_t end = uri.find('/', start);
+            if (end == std::string::npos) end = uri.size();
+            if (uri.compare(start, end - start, "..") == 0 && end - start == 2)
+                return refuse("leaves the input's folder ('..'); cwbvhc --allow-parent-uris allows it");
+            start = end + 1;
+        }
+    }
+    return true;
+}
+
+bool external_exists(const std::string& path, void* user) {
+    if (!uri_allowed(*static_cast<ExternalFiles*>(user), path)) return false;
+    return ::access(path.c_str(), F_OK) == 0;
+}
+
+std::string external_expand(const std::string& path, void*) { return path; }
+
+bool external_read(std::vector<unsigned char>* out, std::string* err, const std::string& path, void* user) {
+    if (!uri_allowed(*static_cast<ExternalFiles*>(user), path)) return false;
+    const Result r = read_regular_file(path, UINT64_MAX, *out);
+    if (!r.ok() && err != nullptr) *err = r.message;
+    return r.ok();
+}
+
+bool external_write(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
+    if (err != nullptr) *err = "cwbvhc writes no glTF files";
+    return false;
+}
+
 std::vector<std::string> split_lines(const std::string& text) {
     std::vector<std::string> lines;
     size_t start = 0;
@@ -784,10 +838,12 @@ Result import_gltf(const std::string& path, const ImportOptions& options, RawInp
         if (bytes.size() >= std::numeric_limits<unsigned int>::max())
             return bad("file of 4 GiB or more (tinygltf limit)");
         const size_t slash = path.find_last_of('/');
-        const std::string base_dir = slash == std::string::npos ? "." : path.substr(0, slash);
+        const std::string base_dir = slash == std::string::npos ? "." : slash == 0 ? "/" : path.substr(0, slash);
 
         tg::TinyGLTF loader;
         loader.SetImageLoader(&ignore_image, nullptr);
+        ExternalFiles external{base_dir.back() == '/' ? base_dir : base_dir + "/", options.allow_parent_uris, ""};
+        loader.SetFsCallbacks({&external_exists, &external_expand, &external_read, &external_write, &external});
         tg::Model model;
         std::string err, warn;
         const bool ok =
@@ -798,6 +854,7 @@ Result import_gltf(const std::string& path, const ImportOptions& options, RawInp
                                                 unsigned(bytes.size()), base_dir);
         std::vector<uint8_t>().swap(bytes);  // tinygltf holds its own copy of the buffers
         for (const std::string& w : split_lines(warn)) warnings.push_back("tinygltf: " + w);
+        if (!ok && !external.refused.empty()) return bad(external.refused);
         if (!ok) {
             const auto lines = split_lines(err);
             return bad("not a valid glTF 2.0 file: " + (lines.empty() ? "tinygltf failed" : lines.front()));

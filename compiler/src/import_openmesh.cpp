@@ -432,6 +432,10 @@ Result import_openmesh(const std::string& path, const ImportOptions& options, Ra
         for (size_t k = 2; k < poly.size(); ++k)
             prim.triangles.push_back({poly[0], poly[k - 1], poly[k]});
     }
+    if (prim.triangles.empty() && out.rejected_by_reader > 0)
+        return bad("no triangles: the reader rejected all " + std::to_string(out.rejected_by_reader) +
+                   " faces the file declares (repeated, invalid or unparsable vertex indices; the warnings "
+                   "above give the reader's messages)");
     if (prim.triangles.empty()) return bad("no triangles");
     out.primitives.push_back(std::move(prim));
     return Result::success();

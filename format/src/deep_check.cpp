@@ -73,18 +73,100 @@ struct Parent {
     uint8_t slot = 0;
 };
 
-/// The decoded boxes from a leaf slot up to the root's child slot: all the
-/// boxes a ray must enter to reach that leaf.
-template <class Pred>
-bool chain_holds(std::span<const CwbvhNode> nodes, const std::vector<Parent>& parent, uint32_t node, int slot,
+/// The boxes from a leaf slot up to the root's child slot: all the boxes a ray must enter to
+/// reach that leaf. `box_of(node, slot)` gives a slot's box; `max_levels` bounds the walk (a
+/// valid file is never deeper: rules 5113, 5606).
+template <class BoxOf, class Pred>
+bool chain_holds(const BoxOf& box_of, const std::vector<Parent>& parent, uint32_t node, int slot, int max_levels,
                  Pred&& inside) {
-    for (int guard = 0; guard <= 64; ++guard) {
-        if (!inside(decoded_box(nodes[node], slot))) return false;
+    for (int guard = 0; guard <= max_levels; ++guard) {
+        if (!inside(box_of(node, slot))) return false;
         if (node == 0) return true;
         slot = parent[node].slot;
         node = parent[node].node;
     }
-    return false;  // deeper than any valid file (rule 5113)
+    return false;  // deeper than any valid file
+}
+
+/// The names a tree's checks report under: D2/D3 for NODE, D6 (with the section) for BVH2/BV2L.
+struct CheckNames {
+    const char* contain;  ///< unsplit triangles inside their chain
+    const char* cover;    ///< split triangles covered by their chains
+    const char* what;     ///< "" or "BV2L: "
+};
+
+/// D2 and D3 (or D6) over every leaf reference of one tree: an unsplit triangle (one record)
+/// lies with its exact bounds inside every box from its leaf to the root; every lattice point
+/// of a split one lies inside the whole chain of one of its records.
+template <class BoxOf>
+Result check_geometry(std::span<const TriangleRecord> triangles, std::vector<LeafRef>& leaf_refs,
+                      const std::vector<Parent>& parent, const BoxOf& box_of, int max_levels, const CheckNames& id,
+                      DeepCheckStats& st) {
+    auto fail_deep = [&](const char* check, const std::string& what) {
+        return Result::fail(Status::kCorrupt, 0, std::string("deep check ") + check + ": " + id.what + what);
+    };
+    std::sort(leaf_refs.begin(), leaf_refs.end(),
+              [](const LeafRef& x, const LeafRef& y) { return x.prim != y.prim ? x.prim < y.prim : x.record < y.record; });
+    for (size_t i = 0; i < leaf_refs.size();) {
+        size_t j = i;
+        while (j < leaf_refs.size() && leaf_refs[j].prim == leaf_refs[i].prim) ++j;
+        const TriangleRecord& tri = triangles[leaf_refs[i].record];
+        const Box tb = triangle_bounds(tri);
+        if (j - i == 1) {
+            // The whole triangle inside its leaf box and every ancestor's.
+            ++st.unsplit_triangles;
+            Box failed{};
+            const bool ok =
+                chain_holds(box_of, parent, leaf_refs[i].node, leaf_refs[i].slot, max_levels, [&](const Box& b) {
+                    failed = b;
+                    return contains(b, tb);
+                });
+            if (!ok)
+                return fail_deep(id.contain, "triangle " + std::to_string(tri.prim) + " bounds " + box_text(tb) +
+                                                 " are not inside the box " + box_text(failed) +
+                                                 " of its leaf or of an ancestor");
+        } else {
+            // Every lattice point of a split triangle lies in the leaf box of some reference
+            // and in every ancestor box of that leaf.
+            ++st.split_triangles;
+            for (size_t k = i; k < j; ++k)
+                if (!overlaps(box_of(leaf_refs[k].node, leaf_refs[k].slot), tb))
+                    return fail_deep(id.cover, "a reference of triangle " + std::to_string(tri.prim) +
+                                                   " has a leaf box that misses the triangle");
+            const float* v[3] = {tri.v0, tri.v1, tri.v2};
+            constexpr int kSteps = 8;  // (kSteps+1)(kSteps+2)/2 = 45 lattice points, vertices included
+            for (int a = 0; a <= kSteps; ++a) {
+                for (int b = 0; a + b <= kSteps; ++b) {
+                    const double wa = double(a) / kSteps, wb = double(b) / kSteps, wc = 1.0 - wa - wb;
+                    double p[3];
+                    for (int ax = 0; ax < 3; ++ax)
+                        p[ax] = (a == kSteps) ? double(v[0][ax])
+                                : (b == kSteps) ? double(v[1][ax])
+                                : (a + b == 0) ? double(v[2][ax])
+                                : wa * double(v[0][ax]) + wb * double(v[1][ax]) + wc * double(v[2][ax]);
+                    bool covered = false;
+                    for (size_t k = i; k < j && !covered; ++k)
+                        covered = chain_holds(box_of, parent, leaf_refs[k].node, leaf_refs[k].slot, max_levels,
+                                              [&](const Box& box) { return contains_point(box, p); });
+                    ++st.samples;
+                    if (!covered)
+                        return fail_deep(id.cover, "a point of split triangle " + std::to_string(tri.prim) +
+                                                       " is inside none of its " + std::to_string(j - i) +
+                                                       " references' leaf-to-root box chains");
+                }
+            }
+        }
+        i = j;
+    }
+    return Result::success();
+}
+
+/// Child c's box of a binary node (the Aila-Laine layout of spec 3.6).
+Box bvh2_box(const Bvh2Node& n, int c) {
+    Box b;
+    if (c == 0) b = {{n.c0_lo_x, n.c0_lo_y, n.c0_lo_z}, {n.c0_hi_x, n.c0_hi_y, n.c0_hi_z}};
+    else b = {{n.c1_lo_x, n.c1_lo_y, n.c1_lo_z}, {n.c1_hi_x, n.c1_hi_y, n.c1_hi_z}};
+    return b;
 }
 
 }  // namespace
@@ -98,6 +180,11 @@ Result deep_check(std::span<const CwbvhNode> nodes, std::span<const TriangleReco
         return Result::fail(Status::kCorrupt, 0, std::string("deep check ") + id + ": " + what);
     };
 
+    // Every stored triangle has a record (D4), so a larger count cannot be right; checked before
+    // anything is sized by it (the count comes from the file: PMAP's total, up to 2^32).
+    if (stored_triangles > triangles.size())
+        return fail_deep("D4", std::to_string(stored_triangles) + " stored triangles but only " +
+                                   std::to_string(triangles.size()) + " TRIS records");
     // Parent links, every record's leaf slot, and references per stored triangle.
     std::vector<Parent> parent(nodes.size());
     std::vector<uint32_t> refs(stored_triangles, 0);
@@ -130,59 +217,67 @@ Result deep_check(std::span<const CwbvhNode> nodes, std::span<const TriangleReco
         if (refs[p] == 0) return fail_deep("D4", "stored triangle " + std::to_string(p) + " is in no leaf");
 
     // D2: unsplit triangles lie inside their leaf box. D3 for the split ones.
-    std::sort(leaf_refs.begin(), leaf_refs.end(),
-              [](const LeafRef& x, const LeafRef& y) { return x.prim != y.prim ? x.prim < y.prim : x.record < y.record; });
-    for (size_t i = 0; i < leaf_refs.size();) {
-        size_t j = i;
-        while (j < leaf_refs.size() && leaf_refs[j].prim == leaf_refs[i].prim) ++j;
-        const TriangleRecord& tri = triangles[leaf_refs[i].record];
-        const Box tb = triangle_bounds(tri);
-        if (j - i == 1) {
-            // D1/D2: the whole triangle inside its leaf box and every ancestor's.
-            ++st.unsplit_triangles;
-            Box failed{};
-            const bool ok = chain_holds(nodes, parent, leaf_refs[i].node, leaf_refs[i].slot, [&](const Box& b) {
-                failed = b;
-                return contains(b, tb);
-            });
-            if (!ok)
-                return fail_deep("D2", "triangle " + std::to_string(tri.prim) + " bounds " + box_text(tb) +
-                                           " are not inside the box " + box_text(failed) +
-                                           " of its leaf or of an ancestor");
-        } else {
-            // D3: every lattice point of a split triangle lies in the leaf box of
-            // some reference and in every ancestor box of that leaf.
-            ++st.split_triangles;
-            for (size_t k = i; k < j; ++k)
-                if (!overlaps(decoded_box(nodes[leaf_refs[k].node], leaf_refs[k].slot), tb))
-                    return fail_deep("D3", "a reference of triangle " + std::to_string(tri.prim) +
-                                               " has a leaf box that misses the triangle");
-            const float* v[3] = {tri.v0, tri.v1, tri.v2};
-            constexpr int kSteps = 8;  // (kSteps+1)(kSteps+2)/2 = 45 lattice points, vertices included
-            for (int a = 0; a <= kSteps; ++a) {
-                for (int b = 0; a + b <= kSteps; ++b) {
-                    const double wa = double(a) / kSteps, wb = double(b) / kSteps, wc = 1.0 - wa - wb;
-                    double p[3];
-                    for (int ax = 0; ax < 3; ++ax)
-                        p[ax] = (a == kSteps) ? double(v[0][ax])
-                                : (b == kSteps) ? double(v[1][ax])
-                                : (a + b == 0) ? double(v[2][ax])
-                                : wa * double(v[0][ax]) + wb * double(v[1][ax]) + wc * double(v[2][ax]);
-                    bool covered = false;
-                    for (size_t k = i; k < j && !covered; ++k)
-                        covered = chain_holds(nodes, parent, leaf_refs[k].node, leaf_refs[k].slot,
-                                              [&](const Box& box) { return contains_point(box, p); });
-                    ++st.samples;
-                    if (!covered)
-                        return fail_deep("D3", "a point of split triangle " + std::to_string(tri.prim) +
-                                                   " is inside none of its " + std::to_string(j - i) +
-                                                   " references' leaf-to-root box chains");
-                }
+    const auto box_of = [&](uint32_t node, int slot) { return decoded_box(nodes[node], slot); };
+    return check_geometry(triangles, leaf_refs, parent, box_of, 64, CheckNames{"D2", "D3", ""}, st);
+}
+
+Result deep_check_bvh2(std::span<const Bvh2Node> nodes, bool leaf_ranges, std::span<const TriangleRecord> triangles,
+                       uint64_t stored_triangles, DeepCheckStats* stats) {
+    DeepCheckStats local;
+    DeepCheckStats& st = stats ? *stats : local;
+    st = DeepCheckStats{};
+    const std::string section = leaf_ranges ? "BV2L" : "BVH2";
+    auto fail_deep = [&](const char* id, const std::string& what) {
+        return Result::fail(Status::kCorrupt, 0, std::string("deep check ") + id + ": " + section + ": " + what);
+    };
+    if (nodes.empty()) return fail_deep("D5", "no nodes");
+    // Every stored triangle has a record (D4), so a larger count cannot be right; checked before
+    // anything is sized by it.
+    if (stored_triangles > triangles.size())
+        return fail_deep("D5", std::to_string(stored_triangles) + " stored triangles but only " +
+                                   std::to_string(triangles.size()) + " TRIS records");
+    std::vector<Parent> parent(nodes.size());
+    std::vector<uint8_t> leaves_of(triangles.size(), 0);  // leaves holding each record (saturates at 2)
+    std::vector<LeafRef> leaf_refs;
+    leaf_refs.reserve(triangles.size());
+    for (size_t i = 0; i < nodes.size(); ++i) {
+        const Bvh2Node& n = nodes[i];
+        // A tree over a single record: one node whose two children are both that leaf (3.6).
+        const bool twin = nodes.size() == 1 && n.child[0] < 0 && n.child[0] == n.child[1] &&
+                          n.leaf_count[0] == n.leaf_count[1];
+        for (int c = 0; c < 2; ++c) {
+            const int32_t child = n.child[c];
+            if (child >= 0) {
+                if (uint64_t(child) <= i || uint64_t(child) >= nodes.size())
+                    return fail_deep("D5", "node " + std::to_string(i) + " child out of order or range");
+                parent[size_t(child)] = {uint32_t(i), uint8_t(c)};
+                ++st.internal_edges;
+                continue;
+            }
+            if (twin && c == 1) continue;
+            const uint64_t first = uint32_t(~child);
+            const uint64_t count = leaf_ranges ? n.leaf_count[c] : 1;
+            if (first > triangles.size() || count > triangles.size() - first)
+                return fail_deep("D5", "node " + std::to_string(i) + " leaf references records out of range");
+            for (uint64_t r = first; r < first + count; ++r) {
+                if (triangles[r].prim >= stored_triangles)
+                    return fail_deep("D5", "record " + std::to_string(r) + " names a stored triangle out of range");
+                if (leaves_of[r] != 0)
+                    return fail_deep("D5", "record " + std::to_string(r) + " is in more than one leaf");
+                leaves_of[r] = 1;
+                leaf_refs.push_back({triangles[r].prim, uint32_t(r), uint32_t(i), uint8_t(c)});
             }
         }
-        i = j;
     }
-    return Result::success();
+    std::vector<uint8_t> reached(stored_triangles, 0);
+    for (const LeafRef& ref : leaf_refs) reached[ref.prim] = 1;
+    for (uint64_t r = 0; r < triangles.size(); ++r)
+        if (leaves_of[r] == 0) return fail_deep("D5", "record " + std::to_string(r) + " is in no leaf");
+    for (uint64_t p = 0; p < stored_triangles; ++p)
+        if (reached[p] == 0) return fail_deep("D5", "stored triangle " + std::to_string(p) + " is in no leaf");
+    const auto box_of = [&](uint32_t node, int slot) { return bvh2_box(nodes[node], slot); };
+    const std::string what = section + ": ";
+    return check_geometry(triangles, leaf_refs, parent, box_of, 65, CheckNames{"D6", "D6", what.c_str()}, st);
 }
 
 }  // namespace cwbvh

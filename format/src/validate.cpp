@@ -52,6 +52,12 @@ Result validate(std::span<const uint8_t> file, const ValidateOptions& options, F
         if (const SectionEntry* e = l.find(info.type))
             if (Result r = validate_section(l, *e, options.verify_checksums); !r.ok()) return r;
     }
+    // Unknown optional sections (spec 2.5): their content is skipped, their checksum is verified
+    // by a validation of the whole file (every known section selected), in table order.
+    if (options.verify_checksums && (options.sections & kMaskAll) == kMaskAll)
+        for (const SectionEntry& e : l.table)
+            if (find_section_info(e.type) == nullptr)
+                if (Result r = validate_section(l, e, true); !r.ok()) return r;
     return Result::success();
 }
 

@@ -80,6 +80,9 @@ Result check_nodes(const FileLayout& layout, std::span<const uint8_t> payload, u
             }
         } else if (n.imask != 0) {
             return node_error(rule::kNodeImask, i, "imask set but every slot is empty");
+        } else if (i != 0) {
+            // Spec 3.1 item 1: only the root of an empty scene may have no used slot.
+            return node_error(rule::kNodeEmpty, i, "has no used slot (only the root of an empty scene may)");
         }
         uint32_t leaf_bits = 0;
         int leaf_total = 0;

@@ -29,6 +29,19 @@ uint64_t source_name_count(const FileLayout& layout) {
     return n;
 }
 
+/// Marks TRIS records [first, first + n) as used by a leaf of node `node` (rule 5610: each record
+/// in exactly one leaf); `twin` is the second child of a single-record tree, already counted.
+Result use_records(std::vector<uint8_t>& used, uint64_t first, uint64_t n, bool twin, const char* name, uint64_t node) {
+    if (twin) return Result::success();
+    for (uint64_t t = first; t < first + n; ++t) {
+        if (used[t] != 0)
+            return element_error(rule::kBvh2TriangleUse, name, "node", node, "TRIS record " + to_string(t) +
+                                     " is already in another leaf");
+        used[t] = 1;
+    }
+    return Result::success();
+}
+
 }  // namespace
 
 uint64_t stored_triangle_count(const FileLayout& layout) {
@@ -73,6 +86,12 @@ Result check_source_map(const FileLayout& layout, std::span<const uint8_t> paylo
             return element_error(rule::kPmapInput, "PMAP", "range", i, "input " + to_string(r.input) +
                                      " is not below the " + to_string(names) + " names in SRCN");
     }
+    // Every stored triangle has at least one TRIS record (7a, D4), so the total is bounded by
+    // what the file holds; readers size per-triangle tables by it (rule 5305).
+    if (const uint64_t records = count_of(layout, kSectionTriangles); next > records)
+        return fail(rule::kPmapTotal, "section PMAP: the ranges cover " + to_string(next) +
+                                          " stored triangles but TRIS holds only " + to_string(records) +
+                                          " records (every stored triangle needs one)");
     return Result::success();
 }
 
@@ -98,6 +117,7 @@ Result check_bvh2(const FileLayout& layout, std::span<const uint8_t> payload, ui
     const uint64_t tri_count = count_of(layout, kSectionTriangles);
     std::vector<uint8_t> has_parent(count, 0);
     std::vector<uint8_t> depth(count, 1);  // root = 1; leaves count as a level
+    std::vector<uint8_t> tri_used(tri_count, 0);  // rule 5610; TRIS count is bounded by the file
     for (uint64_t i = 0; i < count; ++i) {
         const auto n = load<Bvh2Node>(payload, i);
         if (depth[i] + 1u > kMaxBvh2Depth)
@@ -110,6 +130,9 @@ Result check_bvh2(const FileLayout& layout, std::span<const uint8_t> payload, ui
         std::memcpy(box, &n, sizeof box);  // the 12 box floats are the first 48 bytes
         if (!all_finite(box, 12))
             return element_error(rule::kBvh2NonFinite, name, "node", i, "child box is not finite");
+        // A tree over a single record is one node whose two children are both that leaf (3.6).
+        const bool twin_leaves = count == 1 && n.child[0] < 0 && n.child[0] == n.child[1] &&
+                                 n.leaf_count[0] == n.leaf_count[1];
         for (int c = 0; c < 2; ++c) {
             const int32_t child = n.child[c];
             const uint32_t leaf_count = n.leaf_count[c];
@@ -119,6 +142,7 @@ Result check_bvh2(const FileLayout& layout, std::span<const uint8_t> payload, ui
                     if (first >= tri_count)
                         return element_error(rule::kBvh2Leaf, name, "node", i, "leaf ~child = " + to_string(first) +
                                                  " is not below TRIS count " + to_string(tri_count));
+                    if (Result r = use_records(tri_used, first, 1, twin_leaves && c == 1, name, i); !r.ok()) return r;
                     continue;
                 }
                 if (leaf_count < 1 || leaf_count > kMaxBvh2LeafTriangles)
@@ -130,6 +154,8 @@ Result check_bvh2(const FileLayout& layout, std::span<const uint8_t> payload, ui
                     return element_error(rule::kBvh2LeafRange, name, "node", i, "leaf records " + to_string(first) +
                                              ".." + to_string(first + leaf_count - 1) + " are not inside TRIS (" +
                                              to_string(tri_count) + " records)");
+                if (Result r = use_records(tri_used, first, leaf_count, twin_leaves && c == 1, name, i); !r.ok())
+                    return r;
                 continue;
             }
             if (leaf_ranges && leaf_count != 0)
@@ -146,6 +172,10 @@ Result check_bvh2(const FileLayout& layout, std::span<const uint8_t> payload, ui
     }
     for (uint64_t j = 1; j < count; ++j)
         if (has_parent[j] == 0) return element_error(rule::kBvh2Parents, name, "node", j, "has no parent");
+    for (uint64_t t = 0; t < tri_count; ++t)
+        if (tri_used[t] == 0)
+            return fail(rule::kBvh2TriangleUse, std::string("section ") + name + ": TRIS record " + to_string(t) +
+                                                    " is in no leaf (a ray could never reach it)");
     return Result::success();
 }
 

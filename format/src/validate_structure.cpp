@@ -3,6 +3,7 @@
 // product with __builtin_mul_overflow before any byte it covers is read.
 #include <algorithm>
 #include <bit>
+#include <cstdio>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -17,6 +18,13 @@ static_assert(std::endian::native == std::endian::little,
               "the format is little-endian; a big-endian reader must byte-swap");
 
 using std::to_string;
+
+/// "0x%08x": rule 4001's flags in hexadecimal, as the "0x" says.
+std::string hex32(uint32_t v) {
+    char buf[16];
+    std::snprintf(buf, sizeof buf, "0x%08x", unsigned(v));
+    return buf;
+}
 
 bool in_file(uint64_t offset, uint64_t len, uint64_t size) { return offset <= size && len <= size - offset; }
 
@@ -75,7 +83,7 @@ Result check_entry(const SectionEntry& e, const FileHeader& h, uint64_t size) {
     const std::string name = "section " + section_name(e.type);
     const SectionInfo* info = find_section_info(e.type);
     if ((e.flags & ~uint32_t(kSectionRequired)) != 0)
-        return fail(rule::kSectionFlags, name + ": unknown flag bits 0x" + to_string(e.flags));
+        return fail(rule::kSectionFlags, name + ": unknown flag bits " + hex32(e.flags));
     if (e.reserved != 0) return fail(rule::kSectionReserved, name + ": reserved field must be 0");
     if (info == nullptr && (e.flags & kSectionRequired) != 0)
         return fail(rule::kUnknownRequiredSection, name + ": unknown section type marked required");
@@ -151,6 +159,11 @@ Result check_overlap_and_padding(const FileLayout& layout) {
     uint64_t cursor = 0;
     uint32_t prev_type = 0;
     const std::span<const uint8_t> f = layout.file;
+    // Where the file must end (spec 2, rule 4015): after the header, the table and every
+    // section; a section of size 0 counts with its offset (a writer pads up to it).
+    uint64_t end = 0;
+    for (const Range& r : ranges) end = std::max(end, r.begin + r.size);
+    for (const SectionEntry& e : layout.table) end = std::max(end, e.offset);
     for (const Range& r : ranges) {
         if (r.begin < cursor)
             return fail(rule::kSectionOverlap, "section " + section_name(r.type) + ": overlaps section " +
@@ -161,8 +174,11 @@ Result check_overlap_and_padding(const FileLayout& layout) {
         cursor = r.begin + r.size;
         prev_type = r.type;
     }
-    for (uint64_t i = cursor; i < f.size(); ++i)
-        if (f[i] != 0) return fail(rule::kNonZeroPadding, "padding: byte " + to_string(i) + " after the last section is not zero");
+    for (uint64_t i = cursor; i < end; ++i)
+        if (f[i] != 0) return fail(rule::kNonZeroPadding, "padding: byte " + to_string(i) + " between sections is not zero");
+    if (f.size() > end)
+        return fail(rule::kTrailingBytes, "layout: " + to_string(f.size() - end) + " bytes after the end of the last "
+                                          "section (byte " + to_string(end) + "); the format has no padding there");
     return Result::success();
 }
 

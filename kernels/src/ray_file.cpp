@@ -1,10 +1,13 @@
 // Ray and hit files (spec/rays.md).
 #include "cwbvh/kernels/ray_file.h"
 
+#include <algorithm>
 #include <bit>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+
+#include "cwbvh/format/file_io.h"
 
 namespace cwbvh {
 namespace {
@@ -17,17 +20,24 @@ constexpr size_t kHeaderSize = sizeof(RayFileHeader);
 Result bad(std::string what) { return Result::fail(Status::kBadInput, 0, std::move(what)); }
 Result io(std::string what) { return Result::fail(Status::kIoError, 0, std::move(what)); }
 
-Result read_all(const std::string& path, std::vector<uint8_t>& bytes) {
-    FILE* f = std::fopen(path.c_str(), "rb");
-    if (!f) return io(path + ": cannot open: " + std::strerror(errno));
-    bytes.clear();
-    uint8_t buf[1 << 16];
-    size_t n;
-    while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) bytes.insert(bytes.end(), buf, buf + n);
-    const bool bad = std::ferror(f) != 0;
-    std::fclose(f);
-    if (bad) return io(path + ": read error");
-    return Result::success();
+/// Reads the 32-byte header and then exactly the records it announces: the file must be a regular
+/// file (a FIFO or a device such as /dev/zero is refused before any read), and the header's count
+/// is checked against the size fstat reported before anything is allocated.
+template <class T>
+Result read_records(const std::string& path, bool want_hits, std::vector<T>& out, uint32_t& flags) {
+    Expected<RegularFile> f = RegularFile::open(path, false);
+    if (!f.ok()) return f.error();
+    uint8_t header[kHeaderSize] = {};
+    const uint64_t head = std::min<uint64_t>(f->size(), kHeaderSize);
+    if (Result r = f->read_exact(header, head); !r.ok()) return r;
+    uint64_t count = 0;
+    // The header check only reads the first min(size, 32) bytes; `size` is the file's.
+    if (Result r = parse_ray_file_header(header, size_t(f->size()), want_hits, count, flags); !r.ok()) {
+        r.message = path + ": " + r.message;
+        return r;
+    }
+    out.resize(size_t(count));  // count * sizeof(T) == size - 32: bounded by the file
+    return f->read_exact(out.data(), count * sizeof(T));
 }
 
 Result write_all(const std::string& path, const RayFileHeader& h, const void* records, size_t bytes) {
@@ -93,30 +103,12 @@ Result parse_ray_file_header(const uint8_t* bytes, size_t size, bool want_hits, 
 }
 
 Result read_ray_file(const std::string& path, std::vector<Ray>& rays) {
-    std::vector<uint8_t> bytes;
-    if (Result r = read_all(path, bytes); !r.ok()) return r;
-    uint64_t count = 0;
     uint32_t flags = 0;
-    if (Result r = parse_ray_file_header(bytes.data(), bytes.size(), false, count, flags); !r.ok()) {
-        r.message = path + ": " + r.message;
-        return r;
-    }
-    rays.resize(size_t(count));
-    if (count) std::memcpy(rays.data(), bytes.data() + kHeaderSize, size_t(count) * sizeof(Ray));
-    return Result::success();
+    return read_records(path, false, rays, flags);
 }
 
 Result read_hit_file(const std::string& path, std::vector<Hit>& hits, uint32_t& flags) {
-    std::vector<uint8_t> bytes;
-    if (Result r = read_all(path, bytes); !r.ok()) return r;
-    uint64_t count = 0;
-    if (Result r = parse_ray_file_header(bytes.data(), bytes.size(), true, count, flags); !r.ok()) {
-        r.message = path + ": " + r.message;
-        return r;
-    }
-    hits.resize(size_t(count));
-    if (count) std::memcpy(hits.data(), bytes.data() + kHeaderSize, size_t(count) * sizeof(Hit));
-    return Result::success();
+    return read_records(path, true, hits, flags);
 }
 
 Result write_ray_file(const std::string& path, const Ray* rays, size_t count) {

@@ -7,6 +7,9 @@
 #include <cstring>
 #include <fstream>
 #include <sstream>
+#include <vector>
+
+#include "cwbvh/format/file_io.h"
 
 #ifndef CWBVH_VIEW_CATALOG
 #define CWBVH_VIEW_CATALOG "views/catalog.txt"
@@ -144,12 +147,11 @@ Result ViewCatalog::parse(const std::string& text, const std::string& source, Vi
 }
 
 Result ViewCatalog::load(const std::string& path, ViewCatalog& out) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) return Result::fail(Status::kIoError, 0, path + ": cannot read: " + std::strerror(errno));
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    if (in.bad()) return Result::fail(Status::kIoError, 0, path + ": cannot read: I/O error");
-    return parse(ss.str(), path, out);
+    // A regular file only (a FIFO would block, a device never end), of at most 16 MiB.
+    constexpr uint64_t kMaxCatalogBytes = uint64_t(16) << 20;
+    std::vector<uint8_t> bytes;
+    if (Result r = read_regular_file(path, kMaxCatalogBytes, bytes); !r.ok()) return r;
+    return parse(std::string(bytes.begin(), bytes.end()), path, out);
 }
 
 bool ViewCatalog::has_scene(const std::string& scene) const {

@@ -1,13 +1,11 @@
 #include "cwbvh/loader/loader.h"
 
-#include <fcntl.h>
 #include <sys/mman.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
 
+#include "cwbvh/format/file_io.h"
 #include "cwbvh/format/source_map.h"
 
 namespace cwbvh {
@@ -17,32 +15,19 @@ Result io_error(uint32_t rule_id, const std::string& path, const std::string& wh
     return fail(rule_id, path + ": " + what);
 }
 
-/// Closes the descriptor on every path out of open().
-struct Fd {
-    int fd;
-    ~Fd() {
-        if (fd >= 0) ::close(fd);
-    }
-};
-
 }  // namespace
 
 Expected<File> File::open(const std::string& path, const OpenOptions& options) {
-    Fd fd{::open(path.c_str(), O_RDONLY | O_CLOEXEC)};
-    if (fd.fd < 0) return io_error(rule::kOpenFailed, path, std::string("cannot open: ") + std::strerror(errno));
-    struct stat st {};
-    if (::fstat(fd.fd, &st) != 0)
-        return io_error(rule::kOpenFailed, path, std::string("cannot stat: ") + std::strerror(errno));
-    if (S_ISDIR(st.st_mode)) return io_error(rule::kNotRegularFile, path, "is a directory, not a .cwbvh file");
-    if (!S_ISREG(st.st_mode)) return io_error(rule::kNotRegularFile, path, "is not a regular file");
-    if (st.st_size == 0) return io_error(rule::kEmptyFile, path, "is empty (0 bytes)");
-    if (uint64_t(st.st_size) > uint64_t(SIZE_MAX))
-        return io_error(rule::kMapFailed, path, "is too large to map");
+    // Refuses a FIFO, device or directory before anything would block on it (rules 1001, 1002).
+    Expected<RegularFile> fd = RegularFile::open(path);
+    if (!fd.ok()) return fd.error();
+    if (fd->size() == 0) return io_error(rule::kEmptyFile, path, "is empty (0 bytes)");
+    if (fd->size() > uint64_t(SIZE_MAX)) return io_error(rule::kMapFailed, path, "is too large to map");
 
     File file;
     file.path_ = path;
-    file.map_size_ = size_t(st.st_size);
-    void* map = ::mmap(nullptr, file.map_size_, PROT_READ, MAP_PRIVATE, fd.fd, 0);
+    file.map_size_ = size_t(fd->size());
+    void* map = ::mmap(nullptr, file.map_size_, PROT_READ, MAP_PRIVATE, fd->fd(), 0);
     if (map == MAP_FAILED) return io_error(rule::kMapFailed, path, std::string("cannot mmap: ") + std::strerror(errno));
     file.map_ = map;
     // Note: if another process truncates the file while it is mapped, reads

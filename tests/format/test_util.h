@@ -139,9 +139,12 @@ struct ToolRun {
 };
 
 /// Runs `cwbvh ARGS` from the build's bin folder, with CWBVH_VIEWS unset so the
-/// compiled-in view catalog applies.
-inline ToolRun run_cwbvh(const std::string& args) {
-    const std::string cmd = "env -u CWBVH_VIEWS " + std::string(CWBVH_BIN_DIR) + "/cwbvh " + args + " 2>&1";
+/// compiled-in view catalog applies, under `timeout`: a command that hangs (a FIFO
+/// input, issue 21) ends with exit 124 instead of stopping the suite. `shell_before`
+/// runs first in the same shell (e.g. "ulimit -v 1000000; ").
+inline ToolRun run_cwbvh(const std::string& args, const std::string& shell_before = "") {
+    const std::string cmd = shell_before + "env -u CWBVH_VIEWS timeout 120 " + std::string(CWBVH_BIN_DIR) +
+                            "/cwbvh " + args + " 2>&1";
     FILE* p = popen(cmd.c_str(), "r");
     if (p == nullptr) return {-1, ""};
     std::string out;
@@ -155,3 +158,12 @@ inline ToolRun run_cwbvh(const std::string& args) {
 inline size_t count_lines(const std::string& s) { return size_t(std::count(s.begin(), s.end(), '\n')); }
 
 }  // namespace cwbvh::test
+
+/// Expects `result` to fail with rule `id` and a one-line message.
+#define EXPECT_RULE(result, id)                                                   \
+    do {                                                                          \
+        const Result r_ = (result);                                               \
+        EXPECT_EQ(r_.rule, uint32_t(id)) << r_.describe();                        \
+        EXPECT_FALSE(r_.message.empty());                                         \
+        EXPECT_EQ(r_.message.find('\n'), std::string::npos) << "one line";        \
+    } while (0)

@@ -18,14 +18,6 @@ using test::reseal;
 using test::set_entry;
 using test::set_header;
 
-#define EXPECT_RULE(result, id)                                                   \
-    do {                                                                          \
-        const Result r_ = (result);                                               \
-        EXPECT_EQ(r_.rule, uint32_t(id)) << r_.describe();                        \
-        EXPECT_FALSE(r_.message.empty());                                         \
-        EXPECT_EQ(r_.message.find('\n'), std::string::npos) << "one line";        \
-    } while (0)
-
 TEST(Validate, AcceptsSyntheticFile) {
     const Result r = check(test::synthetic_file());
     EXPECT_TRUE(r.ok()) << r.describe();
@@ -178,8 +170,15 @@ TEST(Validate, SourceRanges) {
     // A gap: range 1 ends one early, so range 2 does not start where it ends.
     EXPECT_RULE(check(range(1, [](SourceRange& r) { r.count = 7; })), rule::kPmapRangeOrder);
     EXPECT_RULE(check(range(4, [](SourceRange& r) { r.first_triangle = 0xFFFFFFFAu; })), rule::kPmapRangeLimit);
-    // The last range grows: 44 stored triangles, but INDX still has 40.
-    EXPECT_RULE(check(range(4, [](SourceRange& r) { r.count = 12; })), rule::kIndexCount);
+    // The last range grows: 44 stored triangles, but TRIS holds only 40 records (every stored
+    // triangle needs one): the total is bounded by the file (rule 5305, issue 21 finding 1).
+    EXPECT_RULE(check(range(4, [](SourceRange& r) { r.count = 12; })), rule::kPmapTotal);
+    {
+        // INDX still has 40: its own rule, seen when PMAP and TRIS are not selected.
+        ValidateOptions o;
+        o.sections = kMaskAll & ~(kMaskSourceMap | kMaskTriangles);
+        EXPECT_RULE(validate(range(4, [](SourceRange& r) { r.count = 12; }), o), rule::kIndexCount);
+    }
     // The last range shrinks: TRIS names stored triangle 39, which PMAP no longer covers.
     EXPECT_RULE(check(range(4, [](SourceRange& r) { r.count = 7; })), rule::kTriPrim);
     // A run ending past 2^32 (first + count computed in 64 bits).
@@ -325,11 +324,20 @@ TEST(Validate, LeafRangeSection) {
     // Counts outside 1..4.
     EXPECT_RULE(check(edit([&](Bvh2Node& n) { n.leaf_count[c] = 0; })), rule::kBvh2LeafCount);
     EXPECT_RULE(check(edit([&](Bvh2Node& n) { n.leaf_count[c] = kMaxBvh2LeafTriangles + 1; })), rule::kBvh2LeafCount);
-    EXPECT_TRUE(check(edit([&](Bvh2Node& n) { n.leaf_count[c] = 1; })).ok()) << "a shorter range is still valid";
+    // A shorter range leaves a record in no leaf: no ray could reach it (rule 5610).
+    Bvh2Node leaf;
+    std::memcpy(&leaf, f.data() + entry(f, find_entry(f, kSectionBvh2Leaves)).offset + leaf_node * sizeof leaf,
+                sizeof leaf);
+    if (leaf.leaf_count[c] > 1)
+        EXPECT_RULE(check(edit([&](Bvh2Node& n) { n.leaf_count[c] = 1; })), rule::kBvh2TriangleUse);
+    else
+        EXPECT_TRUE(check(edit([&](Bvh2Node& n) { n.leaf_count[c] = 1; })).ok());
     // Ranges past the end of TRIS.
     EXPECT_RULE(check(edit([&](Bvh2Node& n) { n.child[c] = ~int32_t(tris - 1); n.leaf_count[c] = 2; })),
                 rule::kBvh2LeafRange);
-    EXPECT_TRUE(check(edit([&](Bvh2Node& n) { n.child[c] = ~int32_t(tris - 2); n.leaf_count[c] = 2; })).ok());
+    // In range, but the last records are then in two leaves (rule 5610).
+    EXPECT_RULE(check(edit([&](Bvh2Node& n) { n.child[c] = ~int32_t(tris - 2); n.leaf_count[c] = 2; })),
+                rule::kBvh2TriangleUse);
     EXPECT_RULE(check(edit([&](Bvh2Node& n) { n.child[c] = ~int32_t(tris); n.leaf_count[c] = 1; })),
                 rule::kBvh2LeafRange);
     // An internal child with a count.

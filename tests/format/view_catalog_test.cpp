@@ -161,7 +161,7 @@ TEST(ViewCatalog, LoadNamesTheFileAndCatalogPathRules) {
     const std::string missing = test::temp_dir() + "/no_such_catalog.txt";
     r = ViewCatalog::load(missing, c);
     EXPECT_FALSE(r.ok());
-    EXPECT_TRUE(starts_with(err, missing + ": cannot read")) << err;
+    EXPECT_TRUE(starts_with(err, missing + ": cannot open")) << err;
     // A named catalog (--views) must exist; only the compiled-in default may be absent.
     r = load_view_catalog(missing, c, loaded);
     EXPECT_EQ(loaded, CatalogLoad::kError);

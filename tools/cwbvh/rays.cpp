@@ -13,13 +13,16 @@
 #include <cstdio>
 #include <cstring>
 #include <string>
+#include <vector>
 
 #include "args.h"
 #include "commands.h"
+#include "cwbvh/format/file_io.h"
 #include "cwbvh/kernels/ray_file.h"
 #include "cwbvh/kernels/ray_gen.h"
 #include "cwbvh/kernels/view_catalog.h"
 #include "cwbvh/loader/loader.h"
+#include "scene_camera.h"
 
 namespace cwbvh::tool {
 
@@ -83,9 +86,13 @@ int run_rays(int argc, char** argv) {
     if (!path || !out || kind == 0) return error(kExitUsage, usage);
     if (camera_text && view_text) return error(kExitUsage, "rays: --camera and --view exclude each other");
 
+    // The catalog is an input too (--views, $CWBVH_VIEWS or the compiled-in one).
+    const std::vector<std::string> inputs{path, views_path ? std::string(views_path) : default_view_catalog_path()};
+    if (const Result r = check_output_path(out, inputs); !r.ok()) return error(kExitBadInput, r.message.c_str());
     auto file = File::open(path, {true, kMaskNodes | kMaskTriangles | kMaskBounds});
     if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
-    Camera cam = default_camera(*file->bounds());
+    Camera cam;
+    bool default_cam = false;
     std::string view_note;
     const std::string scene = scene_text ? scene_text : scene_key(path);
     if (camera_text) {
@@ -100,6 +107,7 @@ int run_rays(int argc, char** argv) {
         if (loaded == CatalogLoad::kError || (loaded == CatalogLoad::kAbsent && view_text)) {
             return error(kExitBadInput, ("rays: " + err).c_str());
         } else if (loaded == CatalogLoad::kAbsent) {
+            default_cam = true;
             view_note = "default camera (no view catalog: " + err + ")";
         } else if (view_text) {
             View v;
@@ -113,8 +121,13 @@ int run_rays(int argc, char** argv) {
             view_note = scene + " " + v.name + " (first of " + std::to_string(catalog.views_of(scene).size()) +
                         ", " + catalog.source() + ":" + std::to_string(v.line) + ")";
         } else {
+            default_cam = true;
             view_note = "default camera (scene '" + scene + "' not in " + catalog.source() + ")";
         }
+    }
+    if (default_cam) {
+        if (const Result r = scene_camera(*file->bounds(), path, cam); !r.ok())
+            return error(kExitBadInput, r.message.c_str());
     }
     std::printf("view: %s: %s\n", view_note.c_str(), format_camera(cam).c_str());
 

@@ -15,10 +15,12 @@
 
 #include "args.h"
 #include "commands.h"
+#include "cwbvh/format/file_io.h"
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/ray_gen.h"
 #include "cwbvh/loader/loader.h"
 #include "png_write.h"
+#include "scene_camera.h"
 
 namespace cwbvh::tool {
 namespace {
@@ -78,14 +80,17 @@ int run_render(int argc, char** argv) {
     }
     if (!path || !out) return error(kExitUsage, usage);
 
+    if (const Result r = check_output_path(out, {path}); !r.ok()) return error(kExitBadInput, r.message.c_str());
     auto file = File::open(path, {true, kMaskNodes | kMaskTriangles | kMaskBounds});
     if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
     const SceneBounds& b = *file->bounds();
-    Camera cam = default_camera(b);
+    Camera cam;
     std::string err;
     if (camera_text) {
         if (const Result r = parse_camera(camera_text, cam); !r.ok())
             return error(kExitUsage, ("render: " + r.message).c_str());
+    } else if (const Result r = scene_camera(b, path, cam); !r.ok()) {
+        return error(kExitBadInput, r.message.c_str());
     }
 
     const auto nodes = file->nodes();

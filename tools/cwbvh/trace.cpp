@@ -13,6 +13,7 @@
 
 #include "args.h"
 #include "commands.h"
+#include "cwbvh/format/file_io.h"
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/gpu_trace.h"
 #include "cwbvh/kernels/ray_file.h"
@@ -114,6 +115,10 @@ int run_trace(int argc, char** argv) {
     if (!path || !rays_path) return error(kExitUsage, usage);
     req.threads = threads;
 
+    if (hits_path) {
+        if (const Result r = check_output_path(hits_path, {path, rays_path}); !r.ok())
+            return error(kExitBadInput, r.message.c_str());
+    }
     const uint32_t mask = kMaskNodes | kMaskTriangles | (req.bvh2 ? kMaskBvh2 : 0u);
     auto file = File::open(path, {true, mask});
     if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());

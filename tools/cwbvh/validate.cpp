@@ -10,6 +10,7 @@
 
 #include "commands.h"
 #include "cwbvh/format/deep_check.h"
+#include "cwbvh/format/sections.h"
 #include "cwbvh/loader/loader.h"
 
 namespace cwbvh::tool {
@@ -40,15 +41,27 @@ int run_validate(int argc, char** argv) {
             std::printf("%s: valid\n", path);
             continue;
         }
-        // Stored triangle count: the PMAP total (validated: rule 5201 puts every TRIS.prim below it).
+        // Stored triangle count: the PMAP total (validated: rule 5305 bounds it by the TRIS count).
         const uint64_t stored = file->stored_triangle_count();
         DeepCheckStats st;
-        const Result r = deep_check(file->nodes(), file->triangles(), stored, &st);
+        Result r = deep_check(file->nodes(), file->triangles(), stored, &st);
+        std::string binary;
+        for (const uint32_t type : {uint32_t(kSectionBvh2), uint32_t(kSectionBvh2Leaves)}) {
+            const std::span<const uint8_t> bytes = file->section(type);
+            if (!r.ok() || bytes.empty()) continue;
+            // Sections start 64-byte aligned in the mapping; 64-byte records.
+            const std::span<const Bvh2Node> nodes(reinterpret_cast<const Bvh2Node*>(bytes.data()),
+                                                  bytes.size() / sizeof(Bvh2Node));
+            DeepCheckStats bst;
+            r = deep_check_bvh2(nodes, type == kSectionBvh2Leaves, file->triangles(), stored, &bst);
+            binary += "; " + section_name(type) + ": " + std::to_string(bst.unsplit_triangles + bst.split_triangles) +
+                      " triangles inside their leaf-to-root boxes";
+        }
         if (r.ok()) {
             std::printf("%s: valid (deep: %llu parent links, %llu triangles inside their leaf-to-root boxes, "
-                        "%llu split triangles covered by %llu points)\n",
+                        "%llu split triangles covered by %llu points%s)\n",
                         path, (unsigned long long)st.internal_edges, (unsigned long long)st.unsplit_triangles,
-                        (unsigned long long)st.split_triangles, (unsigned long long)st.samples);
+                        (unsigned long long)st.split_triangles, (unsigned long long)st.samples, binary.c_str());
         } else {
             code = error(kExitBadInput, (std::string(path) + ": " + r.describe()).c_str());
         }

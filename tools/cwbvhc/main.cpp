@@ -6,17 +6,16 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
-#include <filesystem>
 #include <fstream>
 #include <new>
 #include <optional>
 #include <string>
-#include <system_error>
 #include <vector>
 
 #include "cwbvh/compiler/compile.h"
 #include "cwbvh/compiler/phase_line.h"
 #include "cwbvh/compiler/progress.h"
+#include "cwbvh/format/file_io.h"
 
 namespace {
 
@@ -37,6 +36,7 @@ constexpr const char* kUsage =
     "  --keep-sbvh            also store the binary SBVH cut at the wide leaves (BV2L section:\n"
     "                         leaves of 1-3 triangles, for the BVH2 baseline kernel)\n"
     "  --keep-mesh            also store the source mesh (VERT/INDX sections)\n"
+    "  --allow-parent-uris    glTF: let buffer URIs with '..' read outside the input's folder\n"
     "  --stats-json PATH      write build statistics as JSON\n"
     "  --no-verify            skip the decode-and-check pass over the encoded nodes\n"
     "  --quiet                no progress, no summary\n"
@@ -63,40 +63,15 @@ bool parse_float(const std::string& s, float& out) {
     return true;
 }
 
-namespace fs = std::filesystem;
-
-/// Absolute path with every symlink in its existing prefix resolved and "." / ".." removed.
-fs::path normalized(const std::string& path) {
-    std::error_code ec;
-    fs::path p = fs::absolute(path, ec);
-    if (ec) return fs::path(path).lexically_normal();
-    const fs::path canonical = fs::weakly_canonical(p, ec);
-    return ec ? p.lexically_normal() : canonical;
-}
-
-/// True when `a` and `b` name one file: the same path after normalisation, or (both existing)
-/// the same device and inode, which also catches hard links and bind mounts.
-bool same_file(const std::string& a, const std::string& b) {
-    if (normalized(a) == normalized(b)) return true;
-    std::error_code ec;
-    const bool equivalent = fs::equivalent(a, b, ec);
-    return !ec && equivalent;
-}
-
-/// Checks an output path (-o or --stats-json) before anything is read or written: it must not be
-/// one of the files named on the command line (an input, or the other output), and if it exists it
-/// must be a regular file, since the writer replaces it by renaming a temporary file over it.
-/// Returns the one-line error, or "" when the path is fine.
-std::string check_output(const std::string& output, const std::vector<std::string>& others) {
-    for (const auto& other : others)
-        if (same_file(output, other))
-            return output + ": output is the same file as '" + other + "'; refusing to overwrite it";
-    std::error_code ec;
-    const fs::file_status status = fs::status(output, ec);  // follows symlinks
-    if (fs::is_directory(status)) return output + ": output is a directory";
-    if (fs::exists(status) && !fs::is_regular_file(status))
-        return output + ": output exists and is not a regular file";
-    return "";
+/// Prints the import's warnings to stderr, at most kMaxWarnings of them and then how many more
+/// there were; on failure as on success, since they often say why nothing was left to compile.
+void print_warnings(const std::vector<std::string>& warnings) {
+    constexpr size_t kMaxWarnings = 20;
+    for (size_t i = 0; i < warnings.size() && i < kMaxWarnings; ++i)
+        std::fprintf(stderr, "cwbvhc: warning: %s\n", warnings[i].c_str());
+    if (warnings.size() > kMaxWarnings)
+        std::fprintf(stderr, "cwbvhc: warning: ... %zu more (%zu warnings in all)\n", warnings.size() - kMaxWarnings,
+                     warnings.size());
 }
 
 }  // namespace
@@ -146,6 +121,8 @@ int main(int argc, char** argv) {
             options.keep_sbvh = true;
         } else if (arg == "--keep-mesh") {
             options.keep_mesh = true;
+        } else if (arg == "--allow-parent-uris") {
+            options.allow_parent_uris = true;
         } else if (arg == "--stats-json") {
             if (!value(stats_json)) return usage_error("--stats-json needs a path");
         } else if (arg == "--no-verify") {
@@ -164,13 +141,13 @@ int main(int argc, char** argv) {
     // Bad input rather than usage (exit 1): the arguments are well formed; what is wrong is the
     // files they name, which is often only visible on disk (a symlink, a hard link).
     std::vector<std::string> named = options.inputs;
-    std::string output_error = check_output(options.output, named);
-    if (output_error.empty() && !stats_json.empty()) {
+    cwbvh::Result output_check = cwbvh::check_output_path(options.output, named);
+    if (output_check.ok() && !stats_json.empty()) {
         named.push_back(options.output);
-        output_error = check_output(stats_json, named);
+        output_check = cwbvh::check_output_path(stats_json, named);
     }
-    if (!output_error.empty()) {
-        std::fprintf(stderr, "cwbvhc: error: %s\n", output_error.c_str());
+    if (!output_check.ok()) {
+        std::fprintf(stderr, "cwbvhc: error: %s\n", output_check.message.c_str());
         return 1;
     }
 
@@ -197,11 +174,12 @@ int main(int argc, char** argv) {
     if (line) line->stop();  // no phase-line output after this, whatever happened
     if (!result.ok()) {
         if (tty) std::fputs("\n", stderr);
+        print_warnings(stats.warnings);  // the reasons, before the one error line
         std::fprintf(stderr, "cwbvhc: error: %s\n", result.message.c_str());
         return 1;
     }
     if (!quiet) {
-        for (const auto& w : stats.warnings) std::fprintf(stderr, "cwbvhc: warning: %s\n", w.c_str());
+        print_warnings(stats.warnings);
         std::fputs(stats_to_table(stats).c_str(), stdout);
     }
     if (!stats_json.empty()) {

@@ -27,6 +27,7 @@ struct CompileOptions {
     float collapse_cost_prim = 0.3f;      ///< C_prim of the collapse DP (C_node = 1), stored in BILD
     bool keep_sbvh = false;               ///< write the optional BV2L section (binary BVH with leaf ranges)
     bool keep_mesh = false;               ///< write the optional VERT/INDX sections
+    bool allow_parent_uris = false;       ///< glTF: let buffer URIs reach out of the input's folder ('..')
     bool verify = true;                   ///< decode every node and check containment before writing
 };
 

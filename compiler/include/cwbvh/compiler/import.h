@@ -25,6 +25,10 @@ struct ImportOptions {
     /// parents, an unknown entry in extensionsRequired) with a warning
     /// instead of an error. Never relaxes bounds checks.
     bool permissive = false;
+    /// glTF: let an external buffer URI contain a ".." component (it can then
+    /// name any file). Off by default: a buffer must lie in or below the folder
+    /// of the file that names it. Absolute URIs are refused either way.
+    bool allow_parent_uris = false;
 };
 
 /// Loads all inputs in order (SourceRef::input = position in `paths`), merges
@@ -71,7 +75,8 @@ Result import_draco_file(const std::string& path, RawInput& out);
 
 /// The whole file in one read (the readers' input; the importers used a
 /// byte-by-byte stream iterator, 26 ms of the dragon's 0.1 s import).
-/// kIoError "cannot open file" / "cannot read file".
+/// kIoError: "cannot open: <why>", "is a FIFO, not a regular file" (any non-regular file
+/// is refused before a byte is read), "read error: <why>".
 Result read_file_bytes(const std::string& path, std::vector<uint8_t>& bytes);
 
 /// Decodes a Draco mesh (KHR_draco_mesh_compression or a .drc file) into

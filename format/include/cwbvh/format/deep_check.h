@@ -14,7 +14,13 @@
 //      (vertices included, computed in double) lies inside the whole
 //      leaf-to-root box chain of at least one reference (tolerance 2^-40 of
 //      the coordinate magnitude, far below one float ulp).
-//   D4 every stored triangle 0..count-1 is referenced by at least one record.
+//   D4 every stored triangle 0..count-1 is referenced by at least one record
+//      (so the PMAP total is at most the TRIS count; checked before allocating).
+// And over a binary BVH section (BVH2 or BV2L), deep_check_bvh2:
+//   D5 every TRIS record is in exactly one leaf (leaf ranges in range) and every
+//      stored triangle is reached.
+//   D6 D2 and D3 over the binary tree's child boxes: every box contains the
+//      geometry of its subtree (inverted or shrunken boxes fail).
 #pragma once
 
 #include <cstdint>
@@ -36,5 +42,12 @@ struct DeepCheckStats {
 /// TRIS.prim must be below it (the structural validator guarantees this).
 [[nodiscard]] Result deep_check(std::span<const CwbvhNode> nodes, std::span<const TriangleRecord> triangles,
                                 uint64_t stored_triangles, DeepCheckStats* stats = nullptr);
+
+/// D5 and D6 over a binary BVH section: `leaf_ranges` true for BV2L (a leaf holds
+/// `leaf_count` records), false for BVH2 (one record per leaf). Runs on a file that passed
+/// validate(); `stored_triangles` as for deep_check.
+[[nodiscard]] Result deep_check_bvh2(std::span<const Bvh2Node> nodes, bool leaf_ranges,
+                                     std::span<const TriangleRecord> triangles, uint64_t stored_triangles,
+                                     DeepCheckStats* stats = nullptr);
 
 }  // namespace cwbvh

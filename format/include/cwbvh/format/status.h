@@ -67,6 +67,7 @@ inline constexpr uint32_t kElementCount = 4011;
 inline constexpr uint32_t kMissingSection = 4012;
 inline constexpr uint32_t kNonZeroPadding = 4013;
 inline constexpr uint32_t kSectionChecksum = 4014;
+inline constexpr uint32_t kTrailingBytes = 4015;
 // 51xx: NODE
 inline constexpr uint32_t kNodeExponent = 5101;
 inline constexpr uint32_t kNodeMeta = 5102;
@@ -81,6 +82,7 @@ inline constexpr uint32_t kNodePlaneOrder = 5110;
 inline constexpr uint32_t kNodeEmptySlot = 5111;
 inline constexpr uint32_t kNodeNonFinite = 5112;
 inline constexpr uint32_t kNodeDepth = 5113;
+inline constexpr uint32_t kNodeEmpty = 5114;
 // 52xx: TRIS
 inline constexpr uint32_t kTriPrim = 5201;
 // 5202 (TRIS reserved fields) was removed with the fields: the 40-byte record has none.
@@ -90,6 +92,7 @@ inline constexpr uint32_t kPmapInput = 5301;
 inline constexpr uint32_t kPmapRangeEmpty = 5302;
 inline constexpr uint32_t kPmapRangeOrder = 5303;
 inline constexpr uint32_t kPmapRangeLimit = 5304;
+inline constexpr uint32_t kPmapTotal = 5305;
 // 54xx: BNDS
 inline constexpr uint32_t kBoundsInvalid = 5401;
 // 55xx: BILD
@@ -104,6 +107,7 @@ inline constexpr uint32_t kBvh2Depth = 5606;
 inline constexpr uint32_t kBvh2LeafCount = 5607;
 inline constexpr uint32_t kBvh2LeafRange = 5608;
 inline constexpr uint32_t kBvh2InternalCount = 5609;
+inline constexpr uint32_t kBvh2TriangleUse = 5610;
 // 57xx: VERT
 inline constexpr uint32_t kVertNonFinite = 5701;
 // 58xx: INDX
@@ -134,6 +138,8 @@ inline constexpr uint32_t kAll[] = {
     kBvh2Parents,     kBvh2Depth,          kBvh2LeafCount,
     kBvh2LeafRange,   kBvh2InternalCount,  kVertNonFinite,
     kIndexRange,      kIndexCount,         kNamesTerminator,
+    kTrailingBytes,   kNodeEmpty,          kPmapTotal,
+    kBvh2TriangleUse,
 };
 }  // namespace rule
 
