@@ -16,7 +16,6 @@ stored triangle id; MISS for a miss).
 
 import json as _json
 import math as _math
-import os as _os
 
 import numpy as _np
 
@@ -48,30 +47,8 @@ def compile(inputs, output, threads=None, progress=None, **options):  # noqa: A0
         raise ValueError("threads must be None or a positive integer, got %r" % (threads,))
     if progress is not None and not callable(progress):
         raise TypeError("progress must be callable(phase, fraction, seconds)")
-    _check_output(str(output), inputs)
     text = _cwbvh.compile(inputs, str(output), threads or 0, options, progress)
     return _json.loads(text)
-
-
-def _check_output(output, inputs):
-    """cwbvhc's checks of -o before anything is read (tools/cwbvhc/main.cpp, check_output; they
-    are not part of compile() in C++), with its messages: never overwrite an input."""
-    def same(a, b):
-        try:
-            return _os.path.realpath(a) == _os.path.realpath(b) or _os.path.samefile(a, b)
-        except OSError:
-            return False
-    def fail(message):
-        e = Error(message)
-        e.status, e.rule, e.message = "bad input", 0, message
-        raise e
-    for other in inputs:
-        if same(output, other):
-            fail("%s: output is the same file as '%s'; refusing to overwrite it" % (output, other))
-    if _os.path.isdir(output):
-        fail("%s: output is a directory" % output)
-    if _os.path.exists(output) and not _os.path.isfile(output):
-        fail("%s: output exists and is not a regular file" % output)
 
 
 def open(path, deep=False, verify_checksums=True):  # noqa: A001 - cwbvh.open mirrors the loader

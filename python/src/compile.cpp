@@ -14,6 +14,7 @@
 #include "common.h"
 #include "cwbvh/compiler/compile.h"
 #include "cwbvh/compiler/progress.h"
+#include "cwbvh/format/file_io.h"
 
 namespace cwbvh::python {
 namespace {
@@ -78,6 +79,9 @@ std::string compile_py(const std::vector<std::string>& inputs, const std::string
     apply_options(options, o);
     if (o.inputs.empty()) throw py::value_error("no input files");
     if (o.output.empty()) throw py::value_error("no output file");
+    // cwbvhc's checks of -o before anything is read, from the same function and with its
+    // messages: never overwrite an input (they are not part of compile()).
+    check(check_output_path(o.output, o.inputs));
 
     compiler::CompileStats stats;
     Result result;

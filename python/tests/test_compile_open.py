@@ -70,7 +70,7 @@ def test_compile_refuses_to_overwrite_an_input(tmp_path):
     for out in (src, tmp_path / "." / "mesh.obj", tmp_path):
         with pytest.raises(cwbvh.Error) as e:
             cwbvh.compile(src, out)
-        assert str(e.value) == cwbvhc_error(src, "-o", out) and e.value.status == "bad input"
+        assert str(e.value) == cwbvhc_error(src, "-o", out) and e.value.status == "invalid argument"
     assert src.read_bytes() == before
 
 
