@@ -57,6 +57,7 @@
 #include <string>
 #include <vector>
 
+#include "cwbvh/format/file_io.h"
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/cuda_check.h"
 #include "cwbvh/kernels/device_scene.h"
@@ -406,6 +407,17 @@ int main(int argc, char** argv) {
         else if (a == "-h" || a == "--help") return usage();
         else if (!a.empty() && a[0] == '-') return usage();
         else paths.push_back(a);
+    }
+    // The table never overwrites an input (the scenes, the catalog, the compile times).
+    if (!csv_path.empty()) {
+        std::vector<std::string> inputs = paths;
+        if (!views_path.empty()) inputs.push_back(views_path);
+        if (!compile_times_path.empty()) inputs.push_back(compile_times_path);
+        const Result out = check_output_path(csv_path, inputs);
+        if (!out.ok()) {
+            std::fprintf(stderr, "cwbvh_gpu_check: error: %s\n", out.message.c_str());
+            return 2;
+        }
     }
 
     std::string why;
