@@ -110,28 +110,20 @@ Totals check_scene(const std::string& scene, const File& f, const std::vector<Ra
             // triangle; the trees may still differ where a triangle test reports a hit
             // a rounding error outside the triangle's box (the node test culls it in one
             // tree, not the other). So: bitwise differences are counted, and must be
-            // explained by both answers being right (checked against the oracle).
-            const bool same = (wt[i].prim == kMissPrim) == (b2[i].prim == kMissPrim) &&
-                              std::memcmp(&wt[i].t, &b2[i].t, sizeof(float)) == 0;
-            if (!same) {
-                ++tot.bvh2_bitwise_differ;
+            // explained by both answers being right (checked against the oracle). The
+            // GPU lane code is held to the same (its node test has its own false positives).
+            auto compare_bitwise = [&](const Hit& other, uint64_t& differ, uint64_t& disagree) {
+                const bool same = (wt[i].prim == kMissPrim) == (other.prim == kMissPrim) &&
+                                  std::memcmp(&wt[i].t, &other.t, sizeof(float)) == 0;
+                if (same) return;
+                ++differ;
                 Tally a, b;
                 classify_closest(r, wt[i], ex, oracle, a);
-                classify_closest(r, b2[i], ex, oracle, b);
-                if (!a.clean() || !b.clean()) ++tot.bvh2_disagree;
-            }
-            {
-                // The GPU lane code: as the BVH2 above (its node test has its own false positives).
-                const bool same_lanes = (wt[i].prim == kMissPrim) == (gpu_lanes[i].prim == kMissPrim) &&
-                                        std::memcmp(&wt[i].t, &gpu_lanes[i].t, sizeof(float)) == 0;
-                if (!same_lanes) {
-                    ++tot.model_differ;
-                    Tally a, b;
-                    classify_closest(r, wt[i], ex, oracle, a);
-                    classify_closest(r, gpu_lanes[i], ex, oracle, b);
-                    if (!a.clean() || !b.clean()) ++tot.model_disagree;
-                }
-            }
+                classify_closest(r, other, ex, oracle, b);
+                if (!a.clean() || !b.clean()) ++disagree;
+            };
+            compare_bitwise(b2[i], tot.bvh2_bitwise_differ, tot.bvh2_disagree);
+            compare_bitwise(gpu_lanes[i], tot.model_differ, tot.model_disagree);
             const Hit e = embree.intersect(r);
             Tally one;
             classify_closest(r, e, ex, oracle, one);
