@@ -21,7 +21,7 @@ __global__ void probe_cwbvh_node(const CwbvhNode* nodes, const Ray* rays, uint32
     CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x), scale);
     l.nray.zero_axes = 0;
     l.nray.fast = kFast ? 1u : 0u;
-    visit_node(l, gpu::load_node(nodes + out[threadIdx.x]));
+    visit_node(l, gpu::load_node(nodes + out[threadIdx.x]), scale.one_bits);
     out[threadIdx.x] = l.node_group.hits ^ l.tri_group.hits ^ l.node_group.base ^ l.tri_group.base;
 }
 
@@ -56,7 +56,7 @@ template <TriangleTest kTest>
 __global__ void probe_ray_setup(const Ray* rays, uint32_t* out, NodeScale scale) {
     CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x), scale);
     out[threadIdx.x] = __float_as_uint(l.nray.rcp[0] + l.nray.rcp[1] + l.nray.rcp[2] + l.nray.norcp[0] +
-                                       l.nray.norcp[1] + l.nray.norcp[2]) ^ l.nray.octinv ^ l.nray.one_bits;
+                                       l.nray.norcp[1] + l.nray.norcp[2]) ^ l.nray.octinv ^ scale.one_bits;  // the kernel loads one_bits once, not per node
 }
 
 /// One BVH2 node step: 64-byte load, two robust slab tests.

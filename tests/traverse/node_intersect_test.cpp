@@ -169,7 +169,7 @@ void check_never_misses(Which which, uint64_t seed) {
             enable_fast_node_test(nr, node_scale(&n, 1), r.dir, tmin);
             if (!nr.fast) continue;
             ++fast_rays;
-            mask = intersect_node_fast(n, nr, r.tmax);
+            mask = intersect_node_fast(n, nr, r.tmax, nr.one_bits);
         } else {
             mask = intersect_node(n, nr, r.tmin, r.tmax);
         }

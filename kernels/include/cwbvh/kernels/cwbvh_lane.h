@@ -98,19 +98,25 @@ CWBVH_HD CWBVH_INLINE NodeStep next_node(CwbvhLane<kTest>& l, Stack& stack, uint
 }
 
 /// Node step, second half: tests the eight child boxes of the loaded node and makes
-/// its hit children the new node and triangle groups.
+/// its hit children the new node and triangle groups. one_bits: the bits of 1.0f for the
+/// fast test (the kernel passes NodeScale::one_bits from its launch parameters; see
+/// intersect_node_fast); the two-argument form below uses the lane's copy.
 template <TriangleTest kTest>
-CWBVH_HD CWBVH_INLINE void visit_node(CwbvhLane<kTest>& l, const CwbvhNode& node) {
+CWBVH_HD CWBVH_INLINE void visit_node(CwbvhLane<kTest>& l, const CwbvhNode& node, uint32_t one_bits) {
 #if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 900
     // Before sm_90 the three-input integer min/max of the fast test are emulated
     // (several instructions each) and the kernel would spill (sm_75): reference arithmetic.
     const uint32_t hitmask = intersect_node(node, l.nray, l.tmin, l.tmax);
 #else
-    const uint32_t hitmask = l.nray.fast ? intersect_node_fast(node, l.nray, l.tmax)
+    const uint32_t hitmask = l.nray.fast ? intersect_node_fast(node, l.nray, l.tmax, one_bits)
                                          : intersect_node(node, l.nray, l.tmin, l.tmax);
 #endif
     l.node_group = StackEntry{node.child_base, (hitmask & 0xFF000000u) | node.imask};
     l.tri_group = StackEntry{node.tri_base, hitmask & 0x00FFFFFFu};
+}
+template <TriangleTest kTest>
+CWBVH_HD CWBVH_INLINE void visit_node(CwbvhLane<kTest>& l, const CwbvhNode& node) {
+    visit_node(l, node, l.nray.one_bits);
 }
 
 /// Triangle step, first half: takes the next triangle of the group (highest bit

@@ -65,9 +65,9 @@ struct NodeScale {
     float rcp_floor;  ///< 2^(-14 - min e): |rcp| >= this keeps every J = 2^(e-112) rcp a normal float
     uint32_t usable;  ///< 1 when every exponent is in 1..kFastMaxExponent and both bounds are finite;
                       ///< 0 (NodeScale{}): no fast test (the CPU reference, no scene constants)
-    /// 0x3F800000, the bits of 1.0f (node_scale sets it). The kernels take it from their
-    /// launch parameters into NodeRay::one_bits: a value the compiler cannot see keeps
-    /// its byte permutes' selectors immediate (see plane_unit).
+    /// 0x3F800000, the bits of 1.0f (node_scale sets it). The kernel passes it from its
+    /// launch parameters to intersect_node_fast: a value the compiler cannot see keeps the
+    /// byte permutes' selectors immediate (see plane_unit). Host code uses NodeRay::one_bits.
     uint32_t one_bits;
 };
 
@@ -146,9 +146,10 @@ CWBVH_HD CWBVH_INLINE float abs_fm(float x) {
 }
 
 /// F = 1 + q 2^-15 for byte s (0..3) of w: bytes (0x00, q, 0x80, 0x3F). `one` is
-/// the bit pattern of 1.0f held in a register (NodeRay::one_bits): with the constant
-/// in the instruction, the byte permute would need its selector in a register, and
-/// nvcc rematerializes the four selectors before nearly every permute (+37 SASS
+/// the bit pattern of 1.0f from an operand the compiler cannot fold (the kernel's launch
+/// parameter NodeScale::one_bits, in the constant bank): with the constant in the
+/// instruction, the byte permute would need its selector in a register, and nvcc
+/// rematerializes the four selectors before nearly every permute (+37 SASS
 /// instructions per node step).
 CWBVH_HD CWBVH_INLINE float plane_unit(uint32_t w, int s, uint32_t one) {
     return bits_to_float(byte_perm(w, one, 0x7604u | (uint32_t(s & 3) << 4)));
@@ -193,8 +194,11 @@ CWBVH_HD CWBVH_INLINE void enable_fast_node_test(NodeRay& r, const NodeScale& sc
 }
 
 /// The fast node test (see the file comment). octinv and the plane rows as in
-/// intersect_node_scalar; tmin is in the moved origin (enable_fast_node_test).
-CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const NodeRay& r, float tmax) {
+/// intersect_node_scalar; tmin is in the moved origin (enable_fast_node_test). one: the bits
+/// of 1.0f from somewhere the compiler cannot see through (see plane_unit): the kernel passes
+/// its launch parameter, in the constant bank, which takes no register; host code passes
+/// NodeRay::one_bits.
+CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const NodeRay& r, float tmax, uint32_t one) {
     uint32_t lo_w[6], hi_w[6], meta_w[2], e_w;
     memcpy(lo_w, n.q_lo, sizeof lo_w);
     memcpy(hi_w, n.q_hi, sizeof hi_w);
@@ -235,12 +239,12 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const Nod
     CWBVH_UNROLL
     for (int s = 0; s < kWidth; ++s) {
         const int h = s >> 2;
-        const float tnx = fma_rn(plane_unit(near_w[0 + h], s, r.one_bits), J[0], on[0]);
-        const float tny = fma_rn(plane_unit(near_w[2 + h], s, r.one_bits), J[1], on[1]);
-        const float tnz = fma_rn(plane_unit(near_w[4 + h], s, r.one_bits), J[2], on[2]);
-        const float tfx = fma_rn(plane_unit(far_w[0 + h], s, r.one_bits), J[0], of[0]);
-        const float tfy = fma_rn(plane_unit(far_w[2 + h], s, r.one_bits), J[1], of[1]);
-        const float tfz = fma_rn(plane_unit(far_w[4 + h], s, r.one_bits), J[2], of[2]);
+        const float tnx = fma_rn(plane_unit(near_w[0 + h], s, one), J[0], on[0]);
+        const float tny = fma_rn(plane_unit(near_w[2 + h], s, one), J[1], on[1]);
+        const float tnz = fma_rn(plane_unit(near_w[4 + h], s, one), J[2], on[2]);
+        const float tfx = fma_rn(plane_unit(far_w[0 + h], s, one), J[0], of[0]);
+        const float tfy = fma_rn(plane_unit(far_w[2 + h], s, one), J[1], of[1]);
+        const float tfz = fma_rn(plane_unit(far_w[4 + h], s, one), J[2], of[2]);
         const float tnear = bits_to_float(uint32_t(imax3_relu(float_as_int(tnx), float_as_int(tny), float_as_int(tnz))));
         const float tfar = bits_to_float(uint32_t(imin3(float_as_int(tfx), float_as_int(tfy), float_as_int(tfz))));
         if (tnear <= tfar && tnear <= tmax) {
