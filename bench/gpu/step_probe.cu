@@ -55,8 +55,9 @@ __global__ void probe_triangle_setup(const Ray* rays, uint32_t* out) {
 template <TriangleTest kTest>
 __global__ void probe_ray_setup(const Ray* rays, uint32_t* out, NodeScale scale) {
     CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x), scale);
+    // one_bits: the kernel loads it once per launch, not per node step.
     out[threadIdx.x] = __float_as_uint(l.nray.rcp[0] + l.nray.rcp[1] + l.nray.rcp[2] + l.nray.norcp[0] +
-                                       l.nray.norcp[1] + l.nray.norcp[2]) ^ l.nray.octinv ^ scale.one_bits;  // the kernel loads one_bits once, not per node
+                                       l.nray.norcp[1] + l.nray.norcp[2]) ^ l.nray.octinv ^ scale.one_bits;
 }
 
 /// One BVH2 node step: 64-byte load, two robust slab tests.
