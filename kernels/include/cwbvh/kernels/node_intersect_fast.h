@@ -33,8 +33,9 @@
 //     (a superset: conservative). No NaN or infinity can occur on this path.
 //  4. No per-node "bounded" selects and no FLT_MIN slack: the set-up proved that no
 //     slab term of any node of the scene reaches 2^125 for this ray, and that J is a
-//     normal float for every node (node_scale's bounds), so S >= |J| >= 2^-126 and an
-//     underflowing rounding (absolute error <= 2^-150) is far inside E below.
+//     normal float for every node (node_scale's bounds), so S >= |J| >= 2^-126: the
+//     margin E - 5u S >= 11u S >= 11 * 2^-150 covers the few roundings that may land in
+//     the subnormal range (absolute error <= 2^-150 each, at most four on a path).
 //
 // Error bound (u = 2^-24; node_intersect.h's argument with J, O' and o'). Let T' be
 // the exact distance, measured from tmin, to the decoded plane P = RN(p + 2^e q).
