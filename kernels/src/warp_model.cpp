@@ -148,7 +148,7 @@ private:
             if (step == NodeStep::kVisit) {
                 ++visiting;
                 s_.lane_fast_node_steps += lane.l.nray.fast;
-                visit_node(lane.l, nodes_[index]);
+                visit_node(lane.l, nodes_[index], scale_.one_bits);
             } else if (step == NodeStep::kOverflow) {
                 finish(lane, TraceStatus::kStackOverflow);
             } else if (step == NodeStep::kBadIndex) {

@@ -166,10 +166,11 @@ void check_never_misses(Which which, uint64_t seed) {
         if (which == Which::kFast) {
             ref_mask = intersect_node(n, nr, r.tmin, r.tmax);
             const float tmin = r.tmin == 0.0f ? 0.0f : r.tmin;
-            enable_fast_node_test(nr, node_scale(&n, 1), r.dir, tmin);
+            const NodeScale sc = node_scale(&n, 1);
+            enable_fast_node_test(nr, sc, r.dir, tmin);
             if (!nr.fast) continue;
             ++fast_rays;
-            mask = intersect_node_fast(n, nr, r.tmax, nr.one_bits);
+            mask = intersect_node_fast(n, nr, r.tmax, sc.one_bits);
         } else {
             mask = intersect_node(n, nr, r.tmin, r.tmax);
         }

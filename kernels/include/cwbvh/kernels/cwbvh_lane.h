@@ -98,9 +98,9 @@ CWBVH_HD CWBVH_INLINE NodeStep next_node(CwbvhLane<kTest>& l, Stack& stack, uint
 }
 
 /// Node step, second half: tests the eight child boxes of the loaded node and makes
-/// its hit children the new node and triangle groups. one_bits: the bits of 1.0f for the
-/// fast test (the kernel passes NodeScale::one_bits from its launch parameters; see
-/// intersect_node_fast); the two-argument form below uses the lane's copy.
+/// its hit children the new node and triangle groups. one_bits: the scene's
+/// NodeScale::one_bits, the fast test's 1.0f (the kernel passes it from its launch
+/// parameters; see intersect_node_fast).
 template <TriangleTest kTest>
 CWBVH_HD CWBVH_INLINE void visit_node(CwbvhLane<kTest>& l, const CwbvhNode& node, uint32_t one_bits) {
 #if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 900
@@ -113,10 +113,6 @@ CWBVH_HD CWBVH_INLINE void visit_node(CwbvhLane<kTest>& l, const CwbvhNode& node
 #endif
     l.node_group = StackEntry{node.child_base, (hitmask & 0xFF000000u) | node.imask};
     l.tri_group = StackEntry{node.tri_base, hitmask & 0x00FFFFFFu};
-}
-template <TriangleTest kTest>
-CWBVH_HD CWBVH_INLINE void visit_node(CwbvhLane<kTest>& l, const CwbvhNode& node) {
-    visit_node(l, node, l.nray.one_bits);
 }
 
 /// Triangle step, first half: takes the next triangle of the group (highest bit

@@ -50,11 +50,9 @@ struct NodeRay {
     /// Per axis: all ones when dir[a] < 0 (near plane = q_hi), else 0. Host SIMD
     /// code swaps the q_lo/q_hi plane words with it; device code derives it from octinv.
     uint64_t swap[3];
-    /// For intersect_node_fast (node_intersect_fast.h): -RN(o' * rcp) per axis, the bits
-    /// of 1.0f (a register operand of its byte permutes), and whether this ray may use
-    /// it (enable_fast_node_test; 0 from make_node_ray).
+    /// For intersect_node_fast (node_intersect_fast.h): -RN(o' * rcp) per axis, and
+    /// whether this ray may use it (enable_fast_node_test; 0 from make_node_ray).
     float norcp[3];
-    uint32_t one_bits;
     uint32_t fast;
 };
 
@@ -81,7 +79,6 @@ CWBVH_HD CWBVH_INLINE NodeRay make_node_ray(const Ray& r) {
         n.norcp[a] = 0.0f;  // enable_fast_node_test
     }
     n.octinv = 7u - octant;
-    n.one_bits = 0u;  // enable_fast_node_test sets it from the scene constants
     n.fast = 0u;
     return n;
 }

@@ -68,7 +68,7 @@ struct NodeScale {
                       ///< 0 (NodeScale{}): no fast test (the CPU reference, no scene constants)
     /// 0x3F800000, the bits of 1.0f (node_scale sets it). The kernel passes it from its
     /// launch parameters to intersect_node_fast: a value the compiler cannot see keeps the
-    /// byte permutes' selectors immediate (see plane_unit). Host code uses NodeRay::one_bits.
+    /// byte permutes' selectors immediate (see plane_unit).
     uint32_t one_bits;
 };
 
@@ -189,16 +189,14 @@ CWBVH_HD CWBVH_INLINE void enable_fast_node_test(NodeRay& r, const NodeScale& sc
         moved[a] = fma_rn(tmin, dir[a], r.org[a]);
         r.norcp[a] = -mul_rn(moved[a], r.rcp[a]);
     }
-    r.fast = (r.zero_axes == 0 && sc.one_bits == 0x3F800000u && fast_node_test_applies(sc, moved, r.rcp, tmin))
-                 ? 1u : 0u;
-    r.one_bits = sc.one_bits;
+    r.fast = (r.zero_axes == 0 && fast_node_test_applies(sc, moved, r.rcp, tmin)) ? 1u : 0u;
 }
 
 /// The fast node test (see the file comment). octinv and the plane rows as in
-/// intersect_node_scalar; tmin is in the moved origin (enable_fast_node_test). one: the bits
-/// of 1.0f from somewhere the compiler cannot see through (see plane_unit): the kernel passes
-/// its launch parameter, in the constant bank, which takes no register; host code passes
-/// NodeRay::one_bits.
+/// intersect_node_scalar; tmin is in the moved origin (enable_fast_node_test). one: the
+/// scene's NodeScale::one_bits, the bits of 1.0f from somewhere the compiler cannot see
+/// through (see plane_unit): the kernel passes its launch parameter, in the constant bank,
+/// which takes no register.
 CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const NodeRay& r, float tmax, uint32_t one) {
     uint32_t lo_w[6], hi_w[6], meta_w[2], e_w;
     memcpy(lo_w, n.q_lo, sizeof lo_w);
