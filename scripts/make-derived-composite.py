@@ -168,6 +168,12 @@ def main():
     if len(sys.argv) != 3:
         sys.exit(__doc__.split("usage: ")[1])
     src, out = sys.argv[1], sys.argv[2]
+    # Never overwrite an input: the output must not be (a link to) one of the source GLBs.
+    for name in [GROUND] + [n for n, _, _ in PLACED]:
+        path = os.path.join(src, name)
+        if os.path.realpath(out) == os.path.realpath(path) or (
+                os.path.exists(out) and os.path.exists(path) and os.path.samefile(out, path)):
+            sys.exit(f"{out}: output is the same file as '{path}'; refusing to overwrite it")
     rng = random.Random(SEED)
     b = Builder()
     b.place(os.path.join(src, GROUND), label="kicad_board")

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "cwbvh/format/file_io.h"
 #include "cwbvh/kernels/cuda_check.h"
 #include "cwbvh/kernels/ray_file.h"
 #include "cwbvh/loader/loader.h"
@@ -49,6 +50,14 @@ int main(int argc, char** argv) {
         else return usage();
     }
     if (scene.empty() || rays_path.empty()) return usage();
+    if (!hits_path.empty()) {  // never overwrite an input (the tools' one check)
+        std::vector<std::string> inputs{scene, rays_path};
+        if (!ref_path.empty()) inputs.push_back(ref_path);
+        if (const Result r = check_output_path(hits_path, inputs); !r.ok()) {
+            std::fprintf(stderr, "cwbvh_optix_trace: error: %s\n", r.message.c_str());
+            return 2;
+        }
+    }
 
     Expected<File> file = File::open(scene);
     if (!file.ok()) {
