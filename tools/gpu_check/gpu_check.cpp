@@ -357,8 +357,10 @@ bool write_csv(const std::string& path, const std::vector<Row>& rows, const std:
 
 /// --compile-times: "SCENE SECONDS" per line (scripts/gpu-check.sh writes it).
 bool read_compile_times(const std::string& path, std::map<std::string, double>& out) {
-    std::ifstream f(path);
-    if (!f) return false;
+    // A regular file of at most 1 MiB (file_io.h: no FIFO or device, bounded before allocating).
+    std::vector<uint8_t> bytes;
+    if (!read_regular_file(path, uint64_t(1) << 20, bytes).ok()) return false;
+    std::istringstream f(std::string(bytes.begin(), bytes.end()));
     std::string line;
     while (std::getline(f, line)) {
         std::istringstream in(line);
