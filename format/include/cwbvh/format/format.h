@@ -74,6 +74,10 @@ enum SectionType : uint32_t {
     kSectionVertices = fourcc('V', 'E', 'R', 'T'),   ///< float[3][] source vertices, optional
     kSectionIndices = fourcc('I', 'N', 'D', 'X'),    ///< uint32_t[3][] per stored triangle, optional
     kSectionSourceNames = fourcc('S', 'R', 'C', 'N'),///< NUL-terminated UTF-8 input names, optional
+    // Two-level scenes (format 1.2): all three or none; each required.
+    kSectionMeshes = fourcc('M', 'E', 'S', 'H'),     ///< MeshRecord[]: bottom levels (ranges of NODE/TRIS/stored ids)
+    kSectionInstances = fourcc('I', 'N', 'S', 'T'),  ///< InstanceRecord[] in top-level leaf order
+    kSectionTopNodes = fourcc('T', 'L', 'A', 'S'),   ///< CwbvhNode[]: the top level; leaves index INST
 };
 
 enum SectionFlags : uint32_t {
@@ -263,5 +267,53 @@ static_assert(sizeof(BuildInfo) == 256);
 static_assert(offsetof(BuildInfo, input_triangles) == 24);
 static_assert(offsetof(BuildInfo, sah_binary) == 88);
 static_assert(offsetof(BuildInfo, reserved) == 112);
+
+// ---------------------------------------------------------------------------
+// Two-level scenes (format 1.2): MESH, INST, TLAS (spec 3.9)
+// ---------------------------------------------------------------------------
+// In a two-level file NODE holds the bottom levels one after another and TRIS
+// their triangle records; every index stays absolute (child_base into NODE,
+// tri_base into TRIS, prim a stored triangle id), so a bottom level is traversed
+// by the single-level loop started at its root. TLAS is an 8-wide tree in the
+// NODE layout whose leaf "triangles" are INST records (tri_base + offset indexes
+// INST); INST is in TLAS leaf order.
+
+/// One bottom level: a distinct mesh in its own object space.
+struct MeshRecord {
+    uint32_t node_first;   ///< NODE index of the mesh's root; its nodes are [node_first, node_first + node_count)
+    uint32_t node_count;   ///< >= 1
+    uint32_t tri_first;    ///< first TRIS record of the mesh
+    uint32_t tri_count;    ///< TRIS records of the mesh, >= 1
+    uint32_t prim_first;   ///< first stored triangle id of the mesh (PMAP)
+    uint32_t prim_count;   ///< stored triangles of the mesh, >= 1; TRIS prims lie in [prim_first, +prim_count)
+    float lo[3];           ///< exact object-space bounds of the mesh's TRIS vertices
+    float hi[3];
+    uint32_t source_mesh;  ///< glTF mesh index (kInvalidIndex: several source meshes merged, e.g. placed once)
+    uint32_t reserved[3];  ///< 0
+};
+static_assert(sizeof(MeshRecord) == 64);
+static_assert(offsetof(MeshRecord, node_first) == 0);
+static_assert(offsetof(MeshRecord, prim_count) == 20);
+static_assert(offsetof(MeshRecord, lo) == 24);
+static_assert(offsetof(MeshRecord, hi) == 36);
+static_assert(offsetof(MeshRecord, source_mesh) == 48);
+static_assert(offsetof(MeshRecord, reserved) == 52);
+
+/// One placement of a mesh. Affine 3x4 row-major: x_world[r] = M[r][0]*x + M[r][1]*y + M[r][2]*z + M[r][3].
+struct InstanceRecord {
+    float object_to_world[3][4];  ///< finite, invertible (spec 3.10 bounds its condition number)
+    float world_to_object[3][4];  ///< RN of the exact inverse of object_to_world (computed in double)
+    uint32_t mesh;                ///< MESH index
+    uint32_t source_node;         ///< glTF node index (kInvalidIndex: none, e.g. the merged identity instance)
+    float world_lo[3];            ///< conservative world box of the mesh's bounds under object_to_world
+    float world_hi[3];
+};
+static_assert(sizeof(InstanceRecord) == 128);
+static_assert(offsetof(InstanceRecord, object_to_world) == 0);
+static_assert(offsetof(InstanceRecord, world_to_object) == 48);
+static_assert(offsetof(InstanceRecord, mesh) == 96);
+static_assert(offsetof(InstanceRecord, source_node) == 100);
+static_assert(offsetof(InstanceRecord, world_lo) == 104);
+static_assert(offsetof(InstanceRecord, world_hi) == 116);
 
 }  // namespace cwbvh
