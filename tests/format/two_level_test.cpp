@@ -241,6 +241,9 @@ TEST(TwoLevel, MeshRangeRules) {
     EXPECT_RULE(mutate([](MeshRecord& m) { m.lo[1] = NAN; }), rule::kMeshBounds);
     EXPECT_RULE(mutate([](MeshRecord& m) { m.lo[2] = m.hi[2] + 1; }), rule::kMeshBounds);
     EXPECT_RULE(mutate([](MeshRecord& m) { m.reserved[2] = 1; }), rule::kMeshReserved);
+    // Counts from the file never size anything: a mesh claiming 2^32-1 nodes fails its rule at once.
+    EXPECT_RULE(mutate([](MeshRecord& m) { m.node_count = 0xFFFFFFFFu; }), rule::kMeshNodeRange);
+    EXPECT_RULE(mutate([](MeshRecord& m) { m.prim_count = 0xFFFFFFFFu; }), rule::kMeshPrimRange);
     // A mesh 0 record naming a stored triangle of mesh 1 (still below the PMAP total: 5201 holds).
     std::vector<uint8_t> f = standard_file();
     edit_element<TriangleRecord>(f, kSectionTriangles, 4, [](TriangleRecord& t) { t.prim = 35; });
@@ -348,6 +351,22 @@ SceneData chain_mesh(uint32_t levels) {
     }
     test::close_unit_scene(s);
     return s;
+}
+
+TEST(TwoLevel, TopLevelAloneIsSafeOnABrokenNodeSection) {
+    // Validating only the two-level sections reads NODE for rule 6041's mesh depths: a NODE
+    // the validator did not check (wild child_base, cycles by index) must not derail it.
+    std::vector<uint8_t> f = standard_file();
+    edit_element<CwbvhNode>(f, kSectionNodes, 0, [](CwbvhNode& n) { n.child_base = 0xFFFFFFF0u; });
+    edit_element<CwbvhNode>(f, kSectionNodes, 1, [](CwbvhNode& n) {
+        n.imask = 0xFF;
+        n.child_base = 0;
+    });
+    ValidateOptions o;
+    o.sections = kMaskTwoLevel;
+    const Result only_top = validate(f, o);
+    EXPECT_TRUE(only_top.ok()) << only_top.describe();
+    EXPECT_RULE(validate(f), rule::kNodeChildRange);
 }
 
 TEST(TwoLevel, Rule6041DepthOfBothLevels) {
