@@ -94,10 +94,6 @@ CoreOptions core_options(const CompileOptions& options) {
 Result compile_two_level_phases(const CompileOptions& options, InstancedScene& scene, PhaseTimer& timer,
                                 CompileStats& stats) {
     const std::string& file = options.inputs.front();
-    if (options.builder != kBuilderSbvh || options.keep_sbvh || options.keep_mesh)
-        return Result::fail(Status::kInvalidArgument, 0,
-                            file + ": --builder embree, --keep-sbvh and --keep-mesh need a single-level file "
-                                   "(add --flatten)");
     Result r;
     for (Scene& mesh : scene.meshes)
         if (r = make_scene_source_ranges(mesh, options.verify); !r.ok()) return r;
@@ -147,7 +143,10 @@ Result compile_phases(const CompileOptions& options, CompileStats& stats, const 
     if (!timer.run("import", 0, [&] {
             ImportOptions import_options;
             import_options.allow_parent_uris = options.allow_parent_uris;
-            r = options.flatten ? import_scene(options.inputs, import_options, scene, stats.warnings)
+            // Embree, BV2L and VERT/INDX are single-level features: they imply --flatten.
+            const bool flatten = options.flatten || options.builder != kBuilderSbvh || options.keep_sbvh ||
+                                 options.keep_mesh;
+            r = flatten ? import_scene(options.inputs, import_options, scene, stats.warnings)
                                 : import_scene_instanced(options.inputs, import_options, scene, instanced, two_level,
                                                          stats.warnings);
             return r.ok();

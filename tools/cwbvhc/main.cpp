@@ -41,7 +41,8 @@ constexpr const char* kUsage =
     "  --no-verify            skip the decode-and-check pass over the encoded nodes\n"
     "  --flatten              always write a single-level file (default: a glTF input whose\n"
     "                         meshes are placed by several nodes keeps them as instances:\n"
-    "                         a two-level file, format 1.2)\n"
+    "                         a two-level file, format 1.2; --builder embree, --keep-sbvh\n"
+    "                         and --keep-mesh imply --flatten)\n"
     "  --quiet                no progress, no summary\n"
     "  -h, --help             this text\n";
 

@@ -32,6 +32,7 @@ struct CompileOptions {
     /// Single-level file always (today's file). Off: a glTF input in which
     /// some mesh is placed by more than one node gives a two-level file
     /// (format 1.2: MESH/INST/TLAS; issue 19's policy in import.h).
+    /// builder embree, keep_sbvh and keep_mesh imply it (single-level features).
     bool flatten = false;
 };
 
