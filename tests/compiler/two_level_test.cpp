@@ -7,6 +7,7 @@
 // leaf order and its slot boxes contain the instance world boxes, which
 // contain the transformed mesh boxes.
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <cstring>
@@ -362,6 +363,38 @@ TEST(TwoLevel, MeshPlacedTwiceGivesInstancesPlacedOnceIsMerged) {
     EXPECT_EQ(flat.triangles, 3 * 12u + 4u + 12u);
     const Parsed ff = parse(dir / "flat.cwbvh");
     EXPECT_FALSE(ff.has(kSectionMeshes) || ff.has(kSectionInstances) || ff.has(kSectionTopNodes));
+}
+
+TEST(TwoLevel, StatsReportMeshesInstancesAndTrianglesInJsonAndTable) {
+    const fs::path dir = test::temp_dir("two_level_stats");
+    write_gltf(dir / "s.gltf", {box_mesh(), tetra_mesh()}, {{0, ""}, {0, translation(3, 0, 0)}, {1, ""}});
+    const std::string json = (dir / "s.json").string();
+    const test::RunResult r =
+        test::run_tool("cwbvhc", {(dir / "s.gltf").string(), "-o", (dir / "s.cwbvh").string(), "--stats-json", json});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto j = nlohmann::json::parse(test::slurp(json));
+    EXPECT_EQ(j["two_level"], true);
+    EXPECT_EQ(j["meshes"], 2);
+    EXPECT_EQ(j["instances"], 3);
+    EXPECT_EQ(j["distinct_triangles"], 16);
+    EXPECT_EQ(j["instanced_triangles"], 28);
+    EXPECT_EQ(j["triangles"], 16);
+    EXPECT_GE(j["top_nodes"].get<int>(), 1);
+    for (const char* phase : {"import", "meshes", "assemble", "instances", "tlas", "write"})
+        EXPECT_TRUE(j["seconds"].contains(phase)) << phase;
+    for (const char* phase : {"sbvh", "collapse", "slots", "encode"})
+        EXPECT_TRUE(j["mesh_phase_seconds"].contains(phase)) << phase;
+    EXPECT_TRUE(j["bytes"].contains("MESH") && j["bytes"].contains("INST") && j["bytes"].contains("TLAS"));
+    EXPECT_NE(r.out.find("instanced triangles"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("two-level: instances"), std::string::npos) << r.out;
+    // --flatten: single-level, instanced = stored.
+    const test::RunResult f = test::run_tool(
+        "cwbvhc", {(dir / "s.gltf").string(), "-o", (dir / "f.cwbvh").string(), "--flatten", "--stats-json", json, "--quiet"});
+    ASSERT_EQ(f.exit_code, 0) << f.err;
+    const auto k = nlohmann::json::parse(test::slurp(json));
+    EXPECT_EQ(k["two_level"], false);
+    EXPECT_EQ(k["triangles"], 28);
+    EXPECT_EQ(k["instanced_triangles"], 28);
 }
 
 TEST(TwoLevel, NoMeshPlacedTwiceGivesTheSingleLevelFileByteForByte) {
