@@ -5,7 +5,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cfloat>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <numeric>
 
@@ -83,8 +85,10 @@ Result make_instance_record(const Placement& p, const MeshRecord& mesh, Instance
     for (int i = 0; i < 12; ++i) {
         // RN to float: the stored matrix. Its double value is what the inverse,
         // the condition number and the world box are computed from.
-        const float f = float(p.object_to_world[size_t(i)]);
-        if (!std::isfinite(f)) return bad("transform entry " + number(p.object_to_world[size_t(i)]) + " beyond float range");
+        // (Checked before the conversion: a double beyond float's range converts with UB.)
+        const double x = p.object_to_world[size_t(i)];
+        if (!(std::fabs(x) <= double(FLT_MAX))) return bad("transform entry " + number(x) + " beyond float range");
+        const float f = float(x);
         out.object_to_world[i / 4][i % 4] = f;
         a[i] = f;
     }
@@ -93,8 +97,8 @@ Result make_instance_record(const Placement& p, const MeshRecord& mesh, Instance
     if (cond > kMaxInstanceCondition)
         return bad("transform is near-singular: condition number " + number(cond) + " exceeds 2^20");
     for (int i = 0; i < 12; ++i) {
+        if (!(std::fabs(inv[i]) <= double(FLT_MAX))) return bad("inverse transform entry beyond float range");
         const float f = float(inv[i]);  // RN of the double inverse
-        if (!std::isfinite(f)) return bad("inverse transform entry beyond float range");
         out.world_to_object[i / 4][i % 4] = f;
     }
     out.mesh = 0;

@@ -535,6 +535,11 @@ TEST(TwoLevel, HugeTranslations) {
     const Result r = compile_file(dir / "beyond.gltf", dir / "beyond.cwbvh", 1, false, stats);
     ASSERT_FALSE(r.ok());
     EXPECT_NE(r.message.find("glTF node 1"), std::string::npos) << r.message;
+    // 1e39 is beyond float itself (checked before the conversion, which would be UB).
+    write_gltf(dir / "inf.gltf", {box_mesh()}, {{0, ""}, {0, translation(1e39, 0, 0)}});
+    const Result q = compile_file(dir / "inf.gltf", dir / "inf.cwbvh", 1, false, stats);
+    ASSERT_FALSE(q.ok());
+    EXPECT_NE(q.message.find("beyond float range"), std::string::npos) << q.message;
 }
 
 TEST(TwoLevel, InstanceRecordRoundsTheWorldBoxOutward) {
