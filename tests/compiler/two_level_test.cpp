@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <tuple>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,7 @@
 #include "cwbvh/compiler/two_level.h"
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/node_decode.h"
+#include "cwbvh/format/source_map.h"
 
 namespace cwbvh::compiler {
 namespace {
@@ -363,6 +365,90 @@ TEST(TwoLevel, MeshPlacedTwiceGivesInstancesPlacedOnceIsMerged) {
     EXPECT_EQ(flat.triangles, 3 * 12u + 4u + 12u);
     const Parsed ff = parse(dir / "flat.cwbvh");
     EXPECT_FALSE(ff.has(kSectionMeshes) || ff.has(kSectionInstances) || ff.has(kSectionTopNodes));
+}
+
+/// Source key (glTF mesh, primitive, triangle) -> world triangles, from a file:
+/// a single-level file's stored triangles, or every instance of a two-level
+/// file with its mesh's triangles mapped by object_to_world (in double).
+using WorldTriangles = std::map<std::tuple<uint32_t, uint32_t, uint32_t>, std::vector<std::array<double, 9>>>;
+WorldTriangles world_triangles(const Parsed& f) {
+    const auto tris = f.array<TriangleRecord>(kSectionTriangles);
+    const auto pmap = f.array<SourceRange>(kSectionSourceMap);
+    uint64_t stored = 0;
+    for (const SourceRange& r : pmap) stored += r.count;
+    std::vector<const TriangleRecord*> by_prim(stored, nullptr);  // one record per stored triangle
+    for (const TriangleRecord& t : tris) by_prim.at(t.prim) = &t;
+    auto key = [&](uint32_t prim) {
+        const auto s = find_source(pmap, prim);
+        EXPECT_TRUE(s.has_value());
+        return std::make_tuple(s->mesh, s->primitive, s->triangle);
+    };
+    WorldTriangles out;
+    if (!f.has(kSectionInstances)) {
+        for (uint32_t p = 0; p < stored; ++p) {
+            const TriangleRecord& t = *by_prim[p];
+            out[key(p)].push_back({t.v0[0], t.v0[1], t.v0[2], t.v1[0], t.v1[1], t.v1[2], t.v2[0], t.v2[1], t.v2[2]});
+        }
+        return out;
+    }
+    const auto meshes = f.array<MeshRecord>(kSectionMeshes);
+    for (const InstanceRecord& in : f.array<InstanceRecord>(kSectionInstances)) {
+        const MeshRecord& m = meshes.at(in.mesh);
+        for (uint32_t p = m.prim_first; p < m.prim_first + m.prim_count; ++p) {
+            const TriangleRecord& t = *by_prim[p];
+            std::array<double, 9> w{};
+            const float* v[3] = {t.v0, t.v1, t.v2};
+            for (int k = 0; k < 3; ++k)
+                for (int r = 0; r < 3; ++r)
+                    w[size_t(3 * k + r)] = double(in.object_to_world[r][0]) * v[k][0] +
+                                           double(in.object_to_world[r][1]) * v[k][1] +
+                                           double(in.object_to_world[r][2]) * v[k][2] + double(in.object_to_world[r][3]);
+            out[key(p)].push_back(w);
+        }
+    }
+    return out;
+}
+
+TEST(TwoLevel, InstancesExpandToTheFlattenedGeometry) {
+    // Every glTF triangle of every placement, in the instanced file (mesh
+    // triangles under the instance transform) and in the flattened file (world
+    // space), matched one to one by source triangle within float rounding.
+    const fs::path dir = test::temp_dir("two_level_expand");
+    write_gltf(dir / "s.gltf", {box_mesh(), tetra_mesh(), box_mesh(5.0f)},
+               {{0, translation(10, 0, 0)},
+                {1, translation(0, 3, 0)},
+                {0, "\"scale\":[-1,1,1]"},
+                {2, ""},
+                {1, "\"rotation\":[0.5,0.5,0.5,0.5],\"translation\":[-4,2,1]"},
+                {0, "\"rotation\":[0,0,0.38268343236508984,0.92387953251128674],\"scale\":[2,2,2]"}});
+    CompileStats a, b;
+    ASSERT_TRUE(compile_file(dir / "s.gltf", dir / "i.cwbvh", 2, false, a).ok());
+    ASSERT_TRUE(compile_file(dir / "s.gltf", dir / "f.cwbvh", 2, true, b).ok());
+    ASSERT_TRUE(a.two_level);
+    const WorldTriangles inst = world_triangles(parse(dir / "i.cwbvh"));
+    const WorldTriangles flat = world_triangles(parse(dir / "f.cwbvh"));
+    ASSERT_EQ(inst.size(), flat.size());
+    size_t matched = 0;
+    for (const auto& [k, list] : flat) {
+        ASSERT_TRUE(inst.count(k));
+        std::vector<std::array<double, 9>> left = inst.at(k);
+        ASSERT_EQ(left.size(), list.size());
+        for (const auto& t : list) {
+            bool found = false;
+            for (size_t i = 0; i < left.size() && !found; ++i) {
+                bool close = true;
+                for (int c = 0; c < 9; ++c) close = close && std::fabs(left[i][size_t(c)] - t[size_t(c)]) <= 1e-5;
+                if (close) {
+                    left.erase(left.begin() + std::ptrdiff_t(i));
+                    found = true;
+                }
+            }
+            EXPECT_TRUE(found) << "a flattened triangle of source mesh " << std::get<0>(k) << " has no instanced twin";
+            matched += found;
+        }
+    }
+    EXPECT_EQ(matched, size_t(b.triangles));
+    EXPECT_EQ(a.instanced_triangles, b.triangles);
 }
 
 TEST(TwoLevel, StatsReportMeshesInstancesAndTrianglesInJsonAndTable) {
