@@ -196,6 +196,17 @@ Result import_scene_instanced(const std::vector<std::string>& paths, const Impor
             instanced = InstancedScene{};
             return c;
         }
+        // Every mesh placed twice lost all its triangles (points, lines,
+        // degenerate): nothing is instanced after all; the single-level file,
+        // read again exactly as import_scene reads it (its warnings already given).
+        bool placed_twice = false;
+        for (const Placement& p : instanced.placements) placed_twice = placed_twice || p.source_node != kInvalidIndex;
+        if (!placed_twice) {
+            is_instanced = false;
+            instanced = InstancedScene{};
+            std::vector<std::string> again;
+            return import_scene(paths, options, flat, again);
+        }
     } catch (const std::bad_alloc&) {
         return Result::fail(Status::kBadInput, 0, path + ": out of memory while importing");
     } catch (const std::exception& e) {

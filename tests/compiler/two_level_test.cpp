@@ -492,6 +492,18 @@ TEST(TwoLevel, NoMeshPlacedTwiceGivesTheSingleLevelFileByteForByte) {
     EXPECT_FALSE(a.two_level);
     EXPECT_EQ(test::slurp(dir / "default.cwbvh"), test::slurp(dir / "flat.cwbvh"));
     EXPECT_FALSE(parse(dir / "default.cwbvh").has(kSectionMeshes));
+    // A mesh placed twice whose triangles are all degenerate: nothing left to
+    // instance, the single-level file of --flatten.
+    TestMesh flat_mesh;
+    flat_mesh.positions = {0, 0, 0, 1, 0, 0, 2, 0, 0};
+    flat_mesh.indices = {0, 1, 2};
+    write_gltf(dir / "d.gltf", {flat_mesh, tetra_mesh()}, {{0, ""}, {0, translation(1, 0, 0)}, {1, ""}});
+    CompileStats d, e;
+    ASSERT_TRUE(compile_file(dir / "d.gltf", dir / "d.cwbvh", 2, false, d).ok());
+    ASSERT_TRUE(compile_file(dir / "d.gltf", dir / "e.cwbvh", 2, true, e).ok());
+    EXPECT_FALSE(d.two_level);
+    EXPECT_EQ(d.dropped_triangles["degenerate"], 2u);
+    EXPECT_EQ(test::slurp(dir / "d.cwbvh"), test::slurp(dir / "e.cwbvh"));
     // An OBJ input is always single-level.
     test::write_obj(dir / "t.obj", {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}, {{0, 1, 2}});
     CompileStats c;
@@ -626,6 +638,37 @@ TEST(TwoLevel, HugeTranslations) {
     const Result q = compile_file(dir / "inf.gltf", dir / "inf.cwbvh", 1, false, stats);
     ASSERT_FALSE(q.ok());
     EXPECT_NE(q.message.find("beyond float range"), std::string::npos) << q.message;
+}
+
+TEST(TwoLevel, CoreWithOnePlacementGivesATopLevelOfOneLeaf) {
+    // compile_two_level straight from the core: one mesh, one placement.
+    InstancedScene scene;
+    Scene mesh;
+    mesh.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    mesh.indices = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+    for (uint32_t t = 0; t < 4; ++t) mesh.sources.push_back(SourceRef{0, 7, 0, t});
+    mesh.input_names = {"core"};
+    scene.meshes.push_back(mesh);
+    scene.source_mesh = {7};
+    Placement p;
+    p.source_node = 3;
+    p.object_to_world = {0, -1, 0, 5, 1, 0, 0, 6, 0, 0, 1, 7};
+    scene.placements = {p};
+    scene.input_names = {"core"};
+    TwoLevelResult result;
+    ASSERT_TRUE(compile_two_level(scene, CoreOptions{}, "core", result).ok());
+    const fs::path dir = test::temp_dir("two_level_core");
+    std::vector<std::pair<std::string, uint64_t>> bytes;
+    uint64_t file_bytes = 0;
+    ASSERT_TRUE(write_two_level(result, (dir / "c.cwbvh").string(), bytes, file_bytes).ok());
+    const Parsed f = parse(dir / "c.cwbvh");
+    check_two_level(f);
+    EXPECT_EQ(f.array<CwbvhNode>(kSectionTopNodes).size(), 1u);
+    const auto insts = f.array<InstanceRecord>(kSectionInstances);
+    ASSERT_EQ(insts.size(), 1u);
+    EXPECT_EQ(insts[0].source_node, 3u);
+    EXPECT_EQ(insts[0].world_to_object[0][1], 1.0f);  // the inverse of a quarter turn
+    EXPECT_EQ(f.array<MeshRecord>(kSectionMeshes)[0].source_mesh, 7u);
 }
 
 TEST(TwoLevel, InstanceRecordRoundsTheWorldBoxOutward) {
