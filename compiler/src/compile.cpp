@@ -92,7 +92,7 @@ CoreOptions core_options(const CompileOptions& options) {
 /// Two-level file (issue 19): every distinct mesh through the core, the top
 /// level over the instances, then the write.
 Result compile_two_level_phases(const CompileOptions& options, InstancedScene& scene, PhaseTimer& timer,
-                                CompileStats& stats) {
+                                CompileStats& stats, Progress* progress) {
     const std::string& file = options.inputs.front();
     Result r;
     for (Scene& mesh : scene.meshes)
@@ -109,7 +109,7 @@ Result compile_two_level_phases(const CompileOptions& options, InstancedScene& s
         return timer.run(name, units, body);
     };
     TwoLevelResult result;
-    if (r = compile_two_level(scene, core_options(options), file, result, run); !r.ok()) return r;
+    if (r = compile_two_level(scene, core_options(options), file, result, run, progress); !r.ok()) return r;
     InstancedScene{}.meshes.swap(scene.meshes);  // the triangles are in the records now
     stats.references = result.references;
     stats.spatial_splits = result.spatial_splits;
@@ -152,7 +152,7 @@ Result compile_phases(const CompileOptions& options, CompileStats& stats, const 
             return r.ok();
         }))
         return r;
-    if (two_level) return compile_two_level_phases(options, instanced, timer, stats);
+    if (two_level) return compile_two_level_phases(options, instanced, timer, stats, progress);
     // The per-triangle source map becomes PMAP runs now, not at the end: it
     // would be alive through the SBVH and collapse peaks (16 bytes per triangle).
     if (r = make_scene_source_ranges(scene, options.verify); !r.ok()) return r;

@@ -19,6 +19,7 @@
 #include "cwbvh/compiler/emit.h"
 #include "cwbvh/compiler/encode.h"
 #include "cwbvh/compiler/import.h"
+#include "cwbvh/compiler/progress.h"
 #include "cwbvh/compiler/quantize.h"
 #include "cwbvh/format/node_decode.h"
 #include "cwbvh/format/tree_depth.h"
@@ -204,12 +205,14 @@ Result build_top_level(std::vector<InstanceRecord>& instances, const CoreOptions
 }  // namespace
 
 Result compile_two_level(const InstancedScene& scene, const CoreOptions& options, const std::string& file,
-                         TwoLevelResult& out, const PhaseRunner& run) {
+                         TwoLevelResult& out, const PhaseRunner& run, Progress* progress) {
     out = TwoLevelResult{};
     const size_t meshes = scene.meshes.size();
     if (meshes == 0 || scene.placements.empty())
         return Result::fail(Status::kInvalidArgument, 0, "compile_two_level: no meshes or no placements");
-    auto run_phase = [&](const char* name, const std::function<bool()>& body) { return run ? run(name, 0, body) : body(); };
+    auto run_phase = [&](const char* name, uint64_t units, const std::function<bool()>& body) {
+        return run ? run(name, units, body) : body();
+    };
 
     // 1. Bottom levels: each mesh through the core, largest first (the order
     // of the work only; each result depends on its mesh alone).
@@ -224,7 +227,7 @@ Result compile_two_level(const InstancedScene& scene, const CoreOptions& options
     });
     CoreOptions core = options;
     core.sbvh.threads = 0;  // the caller's arena (compile()'s --threads)
-    run_phase("meshes", [&] {
+    run_phase("meshes", scene.distinct_triangles(), [&] {
         tbb::parallel_for(size_t(0), meshes, [&](size_t k) {
             const size_t m = order[k];
             auto& time = seconds[m];
@@ -246,6 +249,7 @@ Result compile_two_level(const InstancedScene& scene, const CoreOptions& options
                 r = compile_binary(s, binary, core, emitted[m], timed);
             }
             results[m] = r;
+            progress_add(progress, s.triangle_count());  // a mesh done: its triangles
         });
         return true;
     });
@@ -270,7 +274,7 @@ Result compile_two_level(const InstancedScene& scene, const CoreOptions& options
 
     // 2. Concatenation with absolute indices; MESH records.
     Result r;
-    run_phase("assemble", [&] {
+    run_phase("assemble", 0, [&] {
         size_t nodes = 0, tris = 0, ranges = 0;
         for (const EmitResult& e : emitted) {
             nodes += e.tree.nodes.size();
@@ -336,7 +340,7 @@ Result compile_two_level(const InstancedScene& scene, const CoreOptions& options
     if (!r.ok()) return r;
 
     // 3. Instance records (errors name the glTF node), then the top level.
-    run_phase("instances", [&] {
+    run_phase("instances", 0, [&] {
         out.instances.resize(scene.placements.size());
         for (size_t i = 0; i < scene.placements.size(); ++i) {
             const Placement& p = scene.placements[i];
@@ -356,7 +360,7 @@ Result compile_two_level(const InstancedScene& scene, const CoreOptions& options
         return true;
     });
     if (!r.ok()) return r;
-    run_phase("tlas", [&] {
+    run_phase("tlas", 0, [&] {
         r = build_top_level(out.instances, options, out.tlas, out.tlas_depth);
         if (!r.ok()) r.message = file + ": " + r.message;
         return r.ok();

@@ -21,6 +21,7 @@
 #include "cli_support.h"
 #include "cwbvh/compiler/compile.h"
 #include "cwbvh/compiler/model.h"
+#include "cwbvh/compiler/progress.h"
 #include "cwbvh/compiler/two_level.h"
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/node_decode.h"
@@ -481,6 +482,27 @@ TEST(TwoLevel, StatsReportMeshesInstancesAndTrianglesInJsonAndTable) {
     EXPECT_EQ(k["two_level"], false);
     EXPECT_EQ(k["triangles"], 28);
     EXPECT_EQ(k["instanced_triangles"], 28);
+}
+
+TEST(TwoLevel, MeshesPhaseCountsTheDistinctTriangles) {
+    const fs::path dir = test::temp_dir("two_level_progress");
+    write_gltf(dir / "s.gltf", {box_mesh(), tetra_mesh()}, {{0, ""}, {0, translation(3, 0, 0)}, {1, ""}, {1, translation(0, 4, 0)}});
+    CompileOptions o;
+    o.inputs = {(dir / "s.gltf").string()};
+    o.output = (dir / "s.cwbvh").string();
+    o.threads = 2;
+    Progress progress;
+    std::vector<std::string> counted;
+    CompileStats stats;
+    const Result r = compile(o, stats, [&](const std::string& phase, bool done, double) {
+        if (done && phase == "meshes") {
+            EXPECT_EQ(progress.total.load(), 16u);
+            EXPECT_EQ(progress.done.load(), 16u);
+            counted.push_back(phase);
+        }
+    }, &progress);
+    ASSERT_TRUE(r.ok()) << r.message;
+    EXPECT_EQ(counted.size(), 1u);
 }
 
 TEST(TwoLevel, NoMeshPlacedTwiceGivesTheSingleLevelFileByteForByte) {

@@ -78,6 +78,7 @@ using PhaseCallback = std::function<void(const std::string& phase, bool done, do
 /// line naming the file and what is wrong.
 /// `progress` (optional, progress.h) is reset before each phase's start callback to the
 /// units that phase counts (sbvh: triangles, collapse: binary nodes, slots: wide nodes;
+/// two-level files: meshes counts the distinct triangles, assemble/instances/tlas 0;
 /// 0 for import, embree, encode and write, which are not counted) and advanced by the
 /// phase from its worker threads; a counted phase ends with done == total. It is only
 /// ever written: the output file is the same with or without it.

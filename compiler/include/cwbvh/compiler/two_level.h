@@ -20,6 +20,8 @@
 
 namespace cwbvh::compiler {
 
+struct Progress;
+
 /// Largest accepted condition number (infinity norm, in double) of an
 /// instance transform's linear part (spec 3.10's bound, 2^20): a ray moved
 /// into object space loses about log2(cond) of float's 24 bits.
@@ -62,8 +64,11 @@ Result make_instance_record(const Placement& p, const MeshRecord& mesh, Instance
 /// concatenates them, builds the instance records and the top level.
 /// `file` names the input in error messages ("<file>: glTF node N: ...").
 /// Each mesh must have >= 1 triangle and at least one placement must exist.
+/// Phases (through `run`): meshes (counts the distinct triangles: `progress`,
+/// optional, advances by a mesh's triangles when it is done), assemble,
+/// instances, tlas.
 Result compile_two_level(const InstancedScene& scene, const CoreOptions& options, const std::string& file,
-                         TwoLevelResult& out, const PhaseRunner& run = {});
+                         TwoLevelResult& out, const PhaseRunner& run = {}, Progress* progress = nullptr);
 
 /// Writes the file (sections of add_scene_sections, then MESH, INST, TLAS).
 Result write_two_level(const TwoLevelResult& result, const std::string& path,
