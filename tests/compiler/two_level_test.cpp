@@ -14,11 +14,13 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <random>
 #include <tuple>
 #include <string>
 #include <vector>
 
 #include "cli_support.h"
+#include "cwbvh/compiler/build.h"
 #include "cwbvh/compiler/compile.h"
 #include "cwbvh/compiler/model.h"
 #include "cwbvh/compiler/progress.h"
@@ -26,6 +28,7 @@
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/node_decode.h"
 #include "cwbvh/format/source_map.h"
+#include "cwbvh/format/transform.h"
 
 namespace cwbvh::compiler {
 namespace {
@@ -691,6 +694,74 @@ TEST(TwoLevel, CoreWithOnePlacementGivesATopLevelOfOneLeaf) {
     EXPECT_EQ(insts[0].source_node, 3u);
     EXPECT_EQ(insts[0].world_to_object[0][1], 1.0f);  // the inverse of a quarter turn
     EXPECT_EQ(f.array<MeshRecord>(kSectionMeshes)[0].source_mesh, 7u);
+}
+
+TEST(TwoLevel, WorldBoxHoldsWhatTheFloatInverseMapsIntoTheMeshBox) {
+    // The traversal moves world points with the float world_to_object
+    // (transform.h). Every world point it maps into the mesh box must lie in
+    // the world box, or the TLAS culls a hit. For random transforms (one axis
+    // scaled by 2^0..2^-17, translations up to 1e5), walk outward float by
+    // float from each corner's image along each axis: while the moved point
+    // lands in the mesh box it must lie in the world box. The bad case: the
+    // tight box of the corners alone (computed here) fails this for some of
+    // them, so the walk can see the error the widening covers.
+    std::mt19937_64 rng(1);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    MeshRecord mesh{};
+    for (int a = 0; a < 3; ++a) {
+        mesh.lo[a] = -1.0f;
+        mesh.hi[a] = 1.0f;
+    }
+    int tried = 0, tight_bad = 0, points = 0;
+    for (int it = 0; it < 400; ++it) {
+        Placement p;
+        const double thin = std::ldexp(1.0, -(it % 18)), move = std::pow(10.0, 1 + it % 5);
+        for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c < 3; ++c) p.object_to_world[size_t(4 * r + c)] = u(rng) * (c == it % 3 ? thin : 1.0);
+            p.object_to_world[size_t(4 * r + 3)] = move * u(rng);
+        }
+        InstanceRecord rec;
+        if (!make_instance_record(p, mesh, rec).ok()) continue;  // condition number above 2^20
+        ++tried;
+        float tight_lo[3], tight_hi[3];
+        for (int r = 0; r < 3; ++r) {
+            double lo = 1e300, hi = -1e300;
+            for (int k = 0; k < 8; ++k) {
+                double v = rec.object_to_world[r][3];
+                for (int c = 0; c < 3; ++c) v += double(rec.object_to_world[r][c]) * (((k >> c) & 1) ? 1.0 : -1.0);
+                lo = std::min(lo, v);
+                hi = std::max(hi, v);
+            }
+            tight_lo[r] = float(lo) > lo ? next_float_down(float(lo)) : float(lo);
+            tight_hi[r] = float(hi) < hi ? next_float_up(float(hi)) : float(hi);
+        }
+        bool tight_failed = false;
+        for (int k = 0; k < 8; ++k) {
+            const float corner[3] = {(k & 1) ? 1.0f : -1.0f, (k & 2) ? 1.0f : -1.0f, (k & 4) ? 1.0f : -1.0f};
+            float w[3];
+            transform_point(rec.object_to_world, corner, w);
+            for (int axis = 0; axis < 3; ++axis)
+                for (int dir = -1; dir <= 1; dir += 2) {
+                    float x[3] = {w[0], w[1], w[2]};
+                    for (int step = 0; step < 64; ++step) {
+                        x[axis] = dir > 0 ? next_float_up(x[axis]) : next_float_down(x[axis]);
+                        float o[3];
+                        transform_point(rec.world_to_object, x, o);
+                        bool in = true;
+                        for (int a = 0; a < 3; ++a) in = in && o[a] >= mesh.lo[a] && o[a] <= mesh.hi[a];
+                        if (!in) continue;
+                        ++points;
+                        tight_failed = tight_failed || !(x[axis] >= tight_lo[axis] && x[axis] <= tight_hi[axis]);
+                        ASSERT_TRUE(x[axis] >= rec.world_lo[axis] && x[axis] <= rec.world_hi[axis])
+                            << "transform " << it << " corner " << k << " axis " << axis << " step " << step;
+                    }
+                }
+        }
+        tight_bad += tight_failed;
+    }
+    EXPECT_GT(tried, 300);
+    EXPECT_GT(points, 0);
+    EXPECT_GT(tight_bad, 0) << "the tight box never failed: the walk would not see a missing widening";
 }
 
 TEST(TwoLevel, InstanceRecordRoundsTheWorldBoxOutward) {
