@@ -51,7 +51,10 @@ struct TwoLevelResult {
 
 /// The instance record of placement `p` of a mesh with object-space bounds
 /// mesh.lo/hi: object_to_world = RN(p's double matrix), world_to_object = RN
-/// of the double inverse of that float matrix, world box rounded outward.
+/// of the double inverse of that float matrix, world box = the conservative
+/// box of the mesh box's corners (rounded outward), widened by
+/// cond * 2^-21 * (largest world coordinate + |translation|) for the float
+/// world_to_object the traversal moves rays with (two_level.cpp).
 /// Errors (kBadInput, message without file name): an entry beyond float range,
 /// a singular transform, a condition number above kMaxInstanceCondition, a
 /// world box beyond the importer's coordinate bound.
