@@ -22,6 +22,7 @@
 #include "cwbvh/compiler/progress.h"
 #include "cwbvh/compiler/quantize.h"
 #include "cwbvh/format/node_decode.h"
+#include "cwbvh/format/transform_host.h"
 #include "cwbvh/format/tree_depth.h"
 #include "cwbvh/format/writer.h"
 
@@ -36,120 +37,9 @@ std::string number(double x) {
     return buf;
 }
 
-// ---------------------------------------------------------------------------
-// Stand-in for format/'s transform_host.h (tl-fmt, not merged yet): the same
-// arithmetic as its invert_affine / condition_number / transform_box /
-// make_instance, in the same order, so that switching to it leaves the files
-// byte-identical.
-// TODO(lead): once tl-fmt is merged, delete this block and call
-// cwbvh::make_instance and cwbvh::condition_number (transform_host.h) from
-// make_instance_record; this is the compiler's only copy.
-// ---------------------------------------------------------------------------
 constexpr double kFloatMax = 3.4028234663852886e38;  // FLT_MAX
 
-/// Largest float <= x / smallest float >= x (a double beyond float's range converts with UB: handled first).
-float round_down(double x) {
-    if (x > kFloatMax) return float(kFloatMax);
-    if (!(x >= -kFloatMax)) return -__builtin_huge_valf();
-    float f = static_cast<float>(x);
-    if (double(f) > x) f = std::nextafter(f, -__builtin_huge_valf());
-    return f;
-}
-float round_up(double x) {
-    if (x < -kFloatMax) return -float(kFloatMax);
-    if (!(x <= kFloatMax)) return __builtin_huge_valf();
-    float f = static_cast<float>(x);
-    if (double(f) < x) f = std::nextafter(f, __builtin_huge_valf());
-    return f;
-}
 
-bool finite_3x4(const float m[3][4]) {
-    for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 4; ++c)
-            if (!std::isfinite(m[r][c])) return false;
-    return true;
-}
-
-/// The double inverse: X_lin = adj(A) / det, X[r][3] = -sum_c X_lin[r][c] * t[c].
-bool stand_in_invert(const float m[3][4], double inv[3][4]) {
-    if (!finite_3x4(m)) return false;
-    const double c0 = double(m[1][1]) * m[2][2] - double(m[1][2]) * m[2][1];
-    const double c1 = double(m[1][2]) * m[2][0] - double(m[1][0]) * m[2][2];
-    const double c2 = double(m[1][0]) * m[2][1] - double(m[1][1]) * m[2][0];
-    const double det = double(m[0][0]) * c0 + double(m[0][1]) * c1 + double(m[0][2]) * c2;
-    if (det == 0.0 || !std::isfinite(det)) return false;
-    auto a = [&](int r, int c) { return double(m[r][c]); };
-    const double adj[3][3] = {
-        {a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1), a(0, 2) * a(2, 1) - a(0, 1) * a(2, 2),
-         a(0, 1) * a(1, 2) - a(0, 2) * a(1, 1)},
-        {a(1, 2) * a(2, 0) - a(1, 0) * a(2, 2), a(0, 0) * a(2, 2) - a(0, 2) * a(2, 0),
-         a(0, 2) * a(1, 0) - a(0, 0) * a(1, 2)},
-        {a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0), a(0, 1) * a(2, 0) - a(0, 0) * a(2, 1),
-         a(0, 0) * a(1, 1) - a(0, 1) * a(1, 0)},
-    };
-    for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 3; ++c) inv[r][c] = adj[r][c] / det;
-        inv[r][3] = -(inv[r][0] * a(0, 3) + inv[r][1] * a(1, 3) + inv[r][2] * a(2, 3));
-    }
-    for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 4; ++c)
-            if (!std::isfinite(inv[r][c])) return false;
-    return true;
-}
-
-/// ||A||inf * ||A^-1||inf of the linear part; +inf if singular.
-double stand_in_condition(const float m[3][4]) {
-    double inv[3][4];
-    if (!stand_in_invert(m, inv)) return __builtin_huge_val();
-    double n = 0, ni = 0;
-    for (int r = 0; r < 3; ++r) {
-        n = std::max(n, std::fabs(double(m[r][0])) + std::fabs(double(m[r][1])) + std::fabs(double(m[r][2])));
-        ni = std::max(ni, std::fabs(inv[r][0]) + std::fabs(inv[r][1]) + std::fabs(inv[r][2]));
-    }
-    const double k = n * ni;
-    return std::isfinite(k) ? k : __builtin_huge_val();
-}
-
-/// The instance record with the tight conservative world box (the 8 corners
-/// in double, widened by 2^-50 of their magnitude for the double rounding,
-/// rounded outward to float). Message without a prefix.
-Result stand_in_make_instance(const float m[3][4], const MeshRecord& mesh, uint32_t source_node,
-                              InstanceRecord& inst) {
-    inst = InstanceRecord{};
-    double x[3][4];
-    if (!finite_3x4(m)) return bad("instance transform: not finite");
-    if (const double k = stand_in_condition(m); !(k <= kMaxInstanceCondition) || !stand_in_invert(m, x))
-        return bad("instance transform: condition number " + number(k) + " (singular or above the limit 2^20)");
-    for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 4; ++c) {
-            if (!(std::fabs(x[r][c]) <= kFloatMax)) return bad("instance transform: the inverse overflows float");
-            inst.object_to_world[r][c] = m[r][c];
-            inst.world_to_object[r][c] = static_cast<float>(x[r][c]);  // RN
-        }
-    inst.source_node = source_node;
-    double wlo[3] = {__builtin_huge_val(), __builtin_huge_val(), __builtin_huge_val()};
-    double whi[3] = {-__builtin_huge_val(), -__builtin_huge_val(), -__builtin_huge_val()};
-    for (int corner = 0; corner < 8; ++corner) {
-        const double p[3] = {(corner & 1) ? mesh.hi[0] : mesh.lo[0], (corner & 2) ? mesh.hi[1] : mesh.lo[1],
-                             (corner & 4) ? mesh.hi[2] : mesh.lo[2]};
-        for (int r = 0; r < 3; ++r) {
-            const double t0 = double(m[r][0]) * p[0], t1 = double(m[r][1]) * p[1], t2 = double(m[r][2]) * p[2];
-            const double t3 = m[r][3];
-            const double v = ((t0 + t1) + t2) + t3;
-            const double err = std::ldexp(std::fabs(t0) + std::fabs(t1) + std::fabs(t2) + std::fabs(t3), -50);
-            wlo[r] = std::min(wlo[r], v - err);
-            whi[r] = std::max(whi[r], v + err);
-        }
-    }
-    for (int r = 0; r < 3; ++r) {
-        inst.world_lo[r] = round_down(wlo[r]);
-        inst.world_hi[r] = round_up(whi[r]);
-        if (!std::isfinite(inst.world_lo[r]) || !std::isfinite(inst.world_hi[r]))
-            return bad("instance transform: the world box of the mesh overflows float");
-    }
-    return Result::success();
-}
-// --- end of the stand-in ----------------------------------------------------
 
 }  // namespace
 
@@ -164,38 +54,14 @@ Result make_instance_record(const Placement& p, const MeshRecord& mesh, Instance
         if (!(std::fabs(x) <= kFloatMax)) return bad("transform entry " + number(x) + " beyond float range");
         m[i / 4][i % 4] = float(x);
     }
-    if (Result r = stand_in_make_instance(m, mesh, p.source_node, out); !r.ok()) return r;
-    // The traversal moves a ray into object space with the float
-    // world_to_object (transform.h: rounded entries, three rounded fmas). For
-    // a world point x that is an object-space error of about
-    // 4 * 2^-24 * ||W^-1||inf * (||x||inf + ||t||inf) (t: the translation;
-    // W^-1's translation column is W^-1 t), i.e. up to
-    // cond * 2^-22 * (||x|| + ||t||) in world space: points that far outside
-    // the exact image of the mesh box can land in it, and the TLAS must not
-    // cull them (must round outward). The world box is widened on every axis
-    // by cond * 2^-21 * (M + ||t||), M = the largest world coordinate of the
-    // box (twice the bound). A world-point walk over 3,000 random transforms
-    // found this necessary (the tight box alone missed such points in 10% of
-    // them) and sufficient (tests: WorldBoxHoldsWhatTheFloatInverseMaps...).
-    // (A ray's origin far from the instance adds error the box cannot bound.)
-    const double cond = stand_in_condition(m);
-    double box_mag = 0, t_mag = 0;
-    for (int r = 0; r < 3; ++r) {
-        double row = std::fabs(double(m[r][3]));
-        for (int c = 0; c < 3; ++c)
-            row += std::fabs(double(m[r][c])) * std::max(std::fabs(double(mesh.lo[c])), std::fabs(double(mesh.hi[c])));
-        box_mag = std::max(box_mag, row);
-        t_mag = std::max(t_mag, std::fabs(double(m[r][3])));
-    }
-    const double pad = cond * 0x1p-21 * (box_mag + t_mag);
-    for (int r = 0; r < 3; ++r) {
-        const double lo = double(out.world_lo[r]) - pad, hi = double(out.world_hi[r]) + pad;
-        // The quantizer's bound (import.h): beyond it no node can encode the box.
-        if (!(std::fabs(lo) <= double(kMaxCoordinate)) || !(std::fabs(hi) <= double(kMaxCoordinate)))
+    Expected<InstanceRecord> made = make_instance(m, mesh, 0, p.source_node);
+    if (!made.ok()) return bad(made.error().message);
+    out = *made;
+    // make_instance widens the world box for the float ray transform (spec 3.10);
+    // beyond the quantizer's bound (import.h) no node can encode it.
+    for (int r = 0; r < 3; ++r)
+        if (!(std::fabs(out.world_lo[r]) <= kMaxCoordinate) || !(std::fabs(out.world_hi[r]) <= kMaxCoordinate))
             return bad("instance world box beyond +-2^125 (translation or scale too large)");
-        out.world_lo[r] = round_down(lo);
-        out.world_hi[r] = round_up(hi);
-    }
     return Result::success();
 }
 
@@ -482,7 +348,10 @@ void add_sections(Writer& writer, const TwoLevelResult& t) {
     s.bounds = &t.bounds;
     s.build_info = &t.build_info;
     s.source_names = t.source_names;
-    add_scene_sections(writer, s, TwoLevelSections{t.meshes, t.instances, t.tlas});
+    s.meshes = t.meshes;
+    s.instances = t.instances;
+    s.top_nodes = t.tlas;
+    add_scene_sections(writer, s);
 }
 
 }  // namespace

@@ -396,10 +396,20 @@ TEST(TwoLevel, DeepCheckD7) {
         EXPECT_FALSE(r.ok());
         EXPECT_NE(r.message.find("D7"), std::string::npos) << r.describe();
     };
-    // A world box one ulp too small: valid structure, wrong geometry.
+    // A world box one ulp smaller than the mesh box's exact image (make_instance widens
+    // the box beyond it for the float ray transform; D7 needs the image itself): valid
+    // structure, wrong geometry.
     expect_d7(deep_after([](std::vector<uint8_t>& f) {
-        edit_element<InstanceRecord>(f, kSectionInstances, 2, [](InstanceRecord& r) {
-            r.world_hi[0] = std::nextafter(r.world_hi[0], -INFINITY);
+        MeshRecord mesh{};
+        edit_element<InstanceRecord>(f, kSectionInstances, 2, [&](InstanceRecord& r) {
+            edit_element<MeshRecord>(f, kSectionMeshes, r.mesh, [&](MeshRecord& m) { mesh = m; });
+        });
+        edit_element<InstanceRecord>(f, kSectionInstances, 2, [&](InstanceRecord& r) {
+            float lo[3], hi[3];
+            transform_box(r.object_to_world, mesh.lo, mesh.hi, lo, hi);
+            ASSERT_LE(r.world_hi[0], std::nextafter(hi[0], INFINITY) + std::fabs(hi[0]))  // widened, not absurd
+                << "world box " << r.world_hi[0] << " image " << hi[0];
+            r.world_hi[0] = std::nextafter(hi[0], -INFINITY);
         });
     }));
     // A mesh box that misses a vertex (its world boxes shrink with it, so only D7 sees it).

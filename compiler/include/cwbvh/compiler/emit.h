@@ -86,19 +86,6 @@ Result encode_scene(const EmitInput& in, EmitResult& out);
 /// VERT/INDX as chosen. Spans into `scene` and `encoded`.
 SceneSections scene_sections(const Scene& scene, const EmitResult& encoded);
 
-/// The two-level sections (format 1.2, issue 19); all empty: a single-level file.
-struct TwoLevelSections {
-    std::span<const MeshRecord> meshes;         ///< MESH
-    std::span<const InstanceRecord> instances;  ///< INST (TLAS leaf order)
-    std::span<const CwbvhNode> tlas;            ///< TLAS
-};
-
-/// format/'s add_scene_sections, then MESH, INST, TLAS (flagged required) when
-/// `two_level` is not empty.
-// TODO(lead): format/'s add_scene_sections takes these spans once tl-fmt is
-// merged (its section order and flags); this is the one place that adds them.
-void add_scene_sections(Writer& writer, const SceneSections& scene, const TwoLevelSections& two_level);
-
 /// Lays out and writes `writer`'s sections atomically to `path`; `bytes` gets
 /// (section name, payload bytes) in file order.
 Result write_with(const Writer& writer, const std::string& path, std::vector<std::pair<std::string, uint64_t>>& bytes,

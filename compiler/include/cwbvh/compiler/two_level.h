@@ -17,15 +17,12 @@
 #include "cwbvh/compiler/model.h"
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/status.h"
+#include "cwbvh/format/transform_host.h"
 
 namespace cwbvh::compiler {
 
 struct Progress;
 
-/// Largest accepted condition number (infinity norm, in double) of an
-/// instance transform's linear part (spec 3.10's bound, 2^20): a ray moved
-/// into object space loses about log2(cond) of float's 24 bits.
-inline constexpr double kMaxInstanceCondition = 0x1p20;
 
 struct TwoLevelResult {
     std::vector<CwbvhNode> nodes;           ///< NODE: the bottom levels one after another (absolute indices)
@@ -56,11 +53,8 @@ struct TwoLevelResult {
 /// cond * 2^-21 * (largest world coordinate + |translation|) for the float
 /// world_to_object the traversal moves rays with (two_level.cpp).
 /// Errors (kBadInput, message without file name): an entry beyond float range,
-/// a singular transform, a condition number above kMaxInstanceCondition, a
+/// a singular transform, a condition number above kMaxTransformCondition, a
 /// world box beyond the importer's coordinate bound.
-// TODO(lead): switch to format/'s host transform helpers (double inverse,
-// condition number, conservative world box) once tl-fmt is merged; this is
-// the only copy in the compiler.
 Result make_instance_record(const Placement& p, const MeshRecord& mesh, InstanceRecord& out);
 
 /// Compiles every mesh (in parallel, output independent of the thread count),
