@@ -138,8 +138,10 @@ class Bench:
     # ---- 1. build -------------------------------------------------------------------------
     def compile(self, mesh, out, builder, collapse, threads, extra=()):
         stats = out + ".stats.json"
+        # --flatten: the peers (Embree, tinybvh) build one flat tree over the world-space
+        # triangles; an instanced glTF would otherwise give a two-level file (format 1.2).
         run([self.cwbvhc, mesh, "-o", out, "--builder", builder, "--collapse", collapse, "--threads", str(threads),
-             "--stats-json", stats, "--quiet"] + list(extra))
+             "--stats-json", stats, "--quiet", "--flatten"] + list(extra))
         with open(stats) as f:
             return json.load(f)
 
