@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "cwbvh/kernels/cpu_trace.h"
+#include "cwbvh/kernels/ray_gen.h"
 #include "cwbvh/kernels/traverse_two_level.h"
 #include "two_level_scene.h"
 
@@ -697,6 +698,78 @@ TEST(TwoLevel, OneMeshPlacedHundredThousandTimes) {
     expect_agree(compare(b, f, rays, two, trace_flat(f, rays)), "one mesh x 100000");
     std::printf("  two-level nodes/ray %.1f  triangles/ray %.1f\n", double(two.stats.nodes_visited) / rays.size(),
                 double(two.stats.triangles_tested) / rays.size());
+}
+
+TEST(TwoLevel, WorldTrianglesAndDiffuseBouncesMatchTheFlattenedScene) {
+    // world_triangle (ray_gen.h: transform_point's fma order) against the double
+    // transform, winding kept (a mirrored instance's normal flips with it); and the
+    // diffuse bounce rays of the two-level scene against the flattened scene's, path
+    // by path, from the same camera rays.
+    const TwoLevelBuild b = build_two_level(test_meshes(), random_placements(40, 3, 30, 16));
+    const FlatBuild f = flatten(b);
+    for (uint32_t ii = 0; ii < uint32_t(b.instances.size()); ++ii) {
+        const InstanceRecord& r = b.instances[ii];
+        const MeshRecord& m = b.meshes[r.mesh];
+        for (const TriangleRecord& t : b.mesh_tris[r.mesh]) {
+            const TriangleRecord w = world_triangle(r, t);
+            double v[3][3];
+            b.world_triangle(ii, m.prim_first + t.prim, v);
+            const float* wv[3] = {w.v0, w.v1, w.v2};
+            double scale = 0;
+            for (int k = 0; k < 3; ++k)
+                for (int c = 0; c < 4; ++c) scale = std::max(scale, std::fabs(double(r.object_to_world[k][c])));
+            for (int k = 0; k < 3; ++k)
+                for (int a = 0; a < 3; ++a) {
+                    // Three fmas: each rounds once; |terms| <= 4 scale max(|x|, 1).
+                    const double mag = 4 * scale * std::max({1.0, std::fabs(double(t.v0[a])), std::fabs(double(t.v1[a])),
+                                                             std::fabs(double(t.v2[a])), 10.0});
+                    ASSERT_LE(std::fabs(double(wv[k][a]) - v[k][a]), 4 * kU * mag);
+                }
+            float n[3];
+            if (!geometric_normal(w, n)) continue;
+            double e1[3], e2[3];
+            for (int a = 0; a < 3; ++a) {
+                e1[a] = v[1][a] - v[0][a];
+                e2[a] = v[2][a] - v[0][a];
+            }
+            const double nd[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                                  e1[0] * e2[1] - e1[1] * e2[0]};
+            EXPECT_GT(n[0] * nd[0] + n[1] * nd[1] + n[2] * nd[2], 0.0) << "instance " << ii;
+        }
+    }
+    float lo[3], hi[3];
+    world_box(b, lo, hi);
+    Camera cam;
+    for (int a = 0; a < 3; ++a) {
+        cam.target[a] = 0.5f * (lo[a] + hi[a]);
+        cam.eye[a] = cam.target[a] + 1.5f * (hi[a] - lo[a]) * (a == 2 ? 1.0f : 0.4f);
+    }
+    const std::vector<Ray> primary = camera_rays(cam, 96, 96);
+    const DiffuseRays two = diffuse_rays(b.view(), primary, 1, 5, 1);
+    const DiffuseRays flat = diffuse_rays(f.wide.nodes.data(), f.wide.nodes.size(), f.wide.tris.data(),
+                                          f.wide.tris.size(), primary, 1, 5, 1);
+    ASSERT_GT(flat.rays.size(), primary.size() / 10);
+    size_t i = 0, j = 0, same = 0;
+    while (i < two.rays.size() && j < flat.rays.size()) {
+        if (two.path[i] < flat.path[j]) {
+            ++i;
+        } else if (two.path[i] > flat.path[j]) {
+            ++j;
+        } else {
+            double dd = 0, od = 0;
+            for (int a = 0; a < 3; ++a) {
+                dd = std::max(dd, std::fabs(double(two.rays[i].dir[a]) - flat.rays[j].dir[a]));
+                od = std::max(od, std::fabs(double(two.rays[i].org[a]) - flat.rays[j].org[a]));
+            }
+            same += dd <= 1e-4 && od <= 1e-4;
+            ++i;
+            ++j;
+        }
+    }
+    std::printf("diffuse bounce: two-level %zu rays, flattened %zu, equal within 1e-4: %zu\n", two.rays.size(),
+                flat.rays.size(), same);
+    EXPECT_EQ(two.rays.size(), flat.rays.size());
+    EXPECT_GE(same * 100, flat.rays.size() * 99);
 }
 
 }  // namespace
