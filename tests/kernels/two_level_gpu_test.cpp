@@ -150,6 +150,22 @@ TEST(TwoLevelGpu, SingleLevelSceneIsRefused) {
     EXPECT_FALSE(ds->has_two_level());
     EXPECT_THROW(trace_two_level(ds.value(), nullptr, nullptr, nullptr, 0, Query::kClosest), std::invalid_argument);
 }
+
+TEST(TwoLevelGpu, SingleLevelKernelsRefuseATwoLevelScene) {
+    if (!have_gpu()) GTEST_SKIP() << "no CUDA device";
+    const TwoLevelBuild b = scene();
+    TwoLevelSections t;
+    t.top_nodes = b.tlas.data();
+    t.top_node_count = b.tlas.size();
+    t.instances = b.instances.data();
+    t.instance_count = b.instances.size();
+    t.meshes = b.meshes.data();
+    t.mesh_count = b.meshes.size();
+    Expected<DeviceScene> ds =
+        DeviceScene::upload(b.nodes.data(), b.nodes.size(), b.tris.data(), b.tris.size(), nullptr, 0, t);
+    ASSERT_TRUE(ds.ok());
+    EXPECT_THROW(trace(ds.value(), nullptr, nullptr, 0, Query::kClosest), std::invalid_argument);
+}
 #endif
 
 TEST(TwoLevelGpu, UploadRefusesAnIncompleteTopLevel) {

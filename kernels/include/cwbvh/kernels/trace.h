@@ -53,7 +53,8 @@ struct TraceOptions {
     float* kernel_ms = nullptr;
 };
 
-/// CWBVH kernel. d_rays, d_hits: n records each, on scene.device().
+/// CWBVH kernel. d_rays, d_hits: n records each, on scene.device(). A two-level
+/// scene (DeviceScene::has_two_level()) is refused (std::invalid_argument): trace_two_level.
 void trace(const DeviceScene& scene, const Ray* d_rays, Hit* d_hits, size_t n, Query query,
            cudaStream_t stream = nullptr, const TraceOptions& options = {});
 
