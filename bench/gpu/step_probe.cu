@@ -44,6 +44,18 @@ __global__ void probe_triangle_edges(const TriangleRecord* tris, const Ray* rays
     out[threadIdx.x] = pass ? __float_as_uint(e.eu + e.ev + e.ew) : 0u;
 }
 
+/// The watertight test's first two stages (edge signs, then the float range test):
+/// all a triangle test runs for a triangle whose plane lies certainly beyond tmax (or
+/// before tmin), the common case among those whose edge signs agree.
+__global__ void probe_triangle_range(const TriangleRecord* tris, const Ray* rays, uint32_t* out) {
+    CwbvhLane<TriangleTest::kWatertight> l(gpu::load_ray(rays + threadIdx.x));
+    const TriangleRecord t = gpu::load_triangle(tris + out[threadIdx.x]);
+    WatertightEdges e;
+    const bool pass = watertight_edges(l.tri_test.w, t.v0, t.v1, t.v2, e) &&
+                      !watertight_range_miss(l.tri_test.w, t.v0, t.v1, t.v2, l.tmin, l.tmax);
+    out[threadIdx.x] = pass ? __float_as_uint(e.eu + e.ev + e.ew) : 0u;
+}
+
 /// The watertight test's per-ray set-up alone (ray load, shear constants): subtracted
 /// from the triangle probes, which hold it too.
 __global__ void probe_triangle_setup(const Ray* rays, uint32_t* out) {

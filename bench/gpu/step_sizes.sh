@@ -44,6 +44,8 @@ tri_setup = next(v for k, v in net.items() if "probe_triangle_setup" in k)
 for k, v in net.items():
     if "probe_triangle_edges" in k:
         print(f"watertight triangle test, first stage (decides the misses), net of set-up: {v - tri_setup} instructions")
+    elif "probe_triangle_range" in k:
+        print(f"watertight triangle test, first two stages (misses by edge or by range, in float), net of set-up: {v - tri_setup} instructions")
     elif "probe_triangle<(cwbvh::TriangleTest)0>" in k:
         print(f"watertight triangle test, whole (hit path, double fallbacks included), net of set-up: {v - tri_setup} instructions")
 for k, v in net.items():

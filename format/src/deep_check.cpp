@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "cwbvh/format/node_decode.h"
+#include "cwbvh/format/transform_host.h"
 
 namespace cwbvh {
 namespace {
@@ -67,21 +68,22 @@ struct LeafRef {
     uint8_t slot;
 };
 
-/// (parent node, slot in parent) of every node; the root's parent is itself.
+/// (parent node, slot in parent) of every node; a root (node 0, or a mesh's root in a
+/// two-level file: spec 3.9) has none (node = kInvalidIndex).
 struct Parent {
-    uint32_t node = 0;
+    uint32_t node = kInvalidIndex;
     uint8_t slot = 0;
 };
 
-/// The boxes from a leaf slot up to the root's child slot: all the boxes a ray must enter to
-/// reach that leaf. `box_of(node, slot)` gives a slot's box; `max_levels` bounds the walk (a
+/// The boxes from a leaf slot up to its tree's root's child slot: all the boxes a ray must
+/// enter to reach that leaf (in a two-level file: up to the mesh's root). `box_of(node, slot)` gives a slot's box; `max_levels` bounds the walk (a
 /// valid file is never deeper: rules 5113, 5606).
 template <class BoxOf, class Pred>
 bool chain_holds(const BoxOf& box_of, const std::vector<Parent>& parent, uint32_t node, int slot, int max_levels,
                  Pred&& inside) {
     for (int guard = 0; guard <= max_levels; ++guard) {
         if (!inside(box_of(node, slot))) return false;
-        if (node == 0) return true;
+        if (parent[node].node == kInvalidIndex) return true;
         slot = parent[node].slot;
         node = parent[node].node;
     }
@@ -169,7 +171,92 @@ Box bvh2_box(const Bvh2Node& n, int c) {
     return b;
 }
 
+/// Parent links of a wide tree whose structure passed validation (D1); false on a child
+/// out of order or range.
+bool wide_parents(std::span<const CwbvhNode> nodes, std::vector<Parent>& parent, uint64_t& edges) {
+    parent.assign(nodes.size(), Parent{});
+    for (size_t i = 0; i < nodes.size(); ++i)
+        for (int s = 0; s < kWidth; ++s) {
+            if (!meta_is_internal(nodes[i].meta[s])) continue;
+            const uint32_t c = internal_child_index(nodes[i], s);
+            if (c <= i || c >= nodes.size()) return false;
+            parent[c] = {uint32_t(i), uint8_t(s)};
+            ++edges;
+        }
+    return true;
+}
+
 }  // namespace
+
+Result deep_check_two_level(std::span<const TriangleRecord> triangles, const TwoLevelView& scene,
+                            DeepCheckStats* stats) {
+    DeepCheckStats local;
+    DeepCheckStats& st = stats ? *stats : local;
+    auto fail_d7 = [](const std::string& what) {
+        return Result::fail(Status::kCorrupt, 0, "deep check D7: " + what);
+    };
+    // Mesh boxes contain their vertices (object space).
+    for (size_t m = 0; m < scene.meshes.size(); ++m) {
+        const MeshRecord& mr = scene.meshes[m];
+        const Box mb{{mr.lo[0], mr.lo[1], mr.lo[2]}, {mr.hi[0], mr.hi[1], mr.hi[2]}};
+        if (uint64_t(mr.tri_first) + mr.tri_count > triangles.size())
+            return fail_d7("mesh " + std::to_string(m) + ": TRIS range out of range");
+        for (uint64_t t = mr.tri_first; t < uint64_t(mr.tri_first) + mr.tri_count; ++t)
+            if (!contains(mb, triangle_bounds(triangles[t])))
+                return fail_d7("mesh " + std::to_string(m) + ": box " + box_text(mb) + " does not contain TRIS record " +
+                               std::to_string(t) + " " + box_text(triangle_bounds(triangles[t])));
+    }
+    // TLAS parent links (D1 on the top level).
+    std::vector<Parent> parent;
+    if (!wide_parents(scene.top_nodes, parent, st.internal_edges))
+        return Result::fail(Status::kCorrupt, 0, "deep check D1: TLAS: a child is out of order or range");
+    std::vector<uint8_t> seen(scene.instances.size(), 0);
+    const auto box_of = [&](uint32_t node, int slot) { return decoded_box(scene.top_nodes[node], slot); };
+    for (size_t i = 0; i < scene.top_nodes.size(); ++i) {
+        const CwbvhNode& n = scene.top_nodes[i];
+        for (int s = 0; s < kWidth; ++s) {
+            const uint8_t meta = n.meta[s];
+            if (meta_is_empty(meta) || meta_is_internal(meta)) continue;
+            for (int k = 0; k < meta_leaf_count(meta); ++k) {
+                const uint64_t j = uint64_t(n.tri_base) + uint64_t(meta_leaf_offset(meta)) + uint64_t(k);
+                if (j >= scene.instances.size() || seen[j] != 0)
+                    return fail_d7("TLAS node " + std::to_string(i) + " names instance " + std::to_string(j) +
+                                   " out of range or twice");
+                seen[j] = 1;
+                const InstanceRecord& inst = scene.instances[j];
+                if (inst.mesh >= scene.meshes.size())
+                    return fail_d7("instance " + std::to_string(j) + ": mesh out of range");
+                const MeshRecord& mr = scene.meshes[inst.mesh];
+                // The world box holds the mesh box's image (recomputed with the rounding bound of 3.10).
+                Box image;
+                transform_box(inst.object_to_world, mr.lo, mr.hi, image.lo, image.hi);
+                const Box world{{inst.world_lo[0], inst.world_lo[1], inst.world_lo[2]},
+                                {inst.world_hi[0], inst.world_hi[1], inst.world_hi[2]}};
+                if (!contains(world, image))
+                    return fail_d7("instance " + std::to_string(j) + ": world box " + box_text(world) +
+                                   " does not contain the transformed mesh box " + box_text(image));
+                Box failed{};
+                if (!chain_holds(box_of, parent, uint32_t(i), s, 64, [&](const Box& b) {
+                        failed = b;
+                        return contains(b, world);
+                    }))
+                    return fail_d7("instance " + std::to_string(j) + ": world box " + box_text(world) +
+                                   " is not inside the TLAS box " + box_text(failed) + " of its leaf or of an ancestor");
+                if (scene.bounds != nullptr) {
+                    const Box bn{{scene.bounds->lo[0], scene.bounds->lo[1], scene.bounds->lo[2]},
+                                 {scene.bounds->hi[0], scene.bounds->hi[1], scene.bounds->hi[2]}};
+                    if (!contains(bn, world))
+                        return fail_d7("instance " + std::to_string(j) + ": world box " + box_text(world) +
+                                       " is not inside BNDS " + box_text(bn));
+                }
+                ++st.instances;
+            }
+        }
+    }
+    for (size_t j = 0; j < seen.size(); ++j)
+        if (seen[j] == 0) return fail_d7("instance " + std::to_string(j) + " is in no TLAS leaf");
+    return Result::success();
+}
 
 Result deep_check(std::span<const CwbvhNode> nodes, std::span<const TriangleRecord> triangles,
                   uint64_t stored_triangles, DeepCheckStats* stats) {

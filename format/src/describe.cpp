@@ -65,6 +65,44 @@ void node_json(std::string& o, const CwbvhNode& n) {
     o += "]}";
 }
 
+/// Counts of a two-level file (spec 3.9): instanced = sum over instances of their
+/// mesh's stored triangles (what the flattened scene would hold).
+struct TwoLevelCounts {
+    uint64_t meshes = 0, instances = 0, top_nodes = 0, distinct = 0, instanced = 0;
+};
+
+bool two_level_counts(const FileLayout& l, TwoLevelCounts& c) {
+    const SectionEntry* me = l.find(kSectionMeshes);
+    const SectionEntry* ie = l.find(kSectionInstances);
+    const SectionEntry* te = l.find(kSectionTopNodes);
+    if (me == nullptr || ie == nullptr || te == nullptr || me->element_size != sizeof(MeshRecord) ||
+        ie->element_size != sizeof(InstanceRecord))
+        return false;
+    c.meshes = me->element_count;
+    c.instances = ie->element_count;
+    c.top_nodes = te->element_count;
+    if (const SectionEntry* pm = l.find(kSectionSourceMap); pm != nullptr && pm->element_count > 0 &&
+                                                            pm->element_size == sizeof(SourceRange)) {
+        const auto last = element<SourceRange>(l, *pm, pm->element_count - 1);
+        c.distinct = uint64_t(last.first) + last.count;
+    }
+    for (uint64_t i = 0; i < c.instances; ++i) {
+        const auto inst = element<InstanceRecord>(l, *ie, i);
+        if (inst.mesh < c.meshes) c.instanced += element<MeshRecord>(l, *me, inst.mesh).prim_count;
+    }
+    return true;
+}
+
+std::string matrix(const float m[3][4]) {
+    std::string o = "[";
+    for (int r = 0; r < 3; ++r) {
+        o += r ? ", [" : "[";
+        for (int c = 0; c < 4; ++c) o += (c ? ", " : "") + num(m[r][c]);
+        o += "]";
+    }
+    return o + "]";
+}
+
 }  // namespace
 
 std::string describe_text(const FileLayout& l) {
@@ -92,6 +130,11 @@ std::string describe_text(const FileLayout& l) {
         o += "  SAH binary " + num(bi.sah_binary) + ", SAH wide " + num(bi.sah_wide) + ", avg children " +
              num(bi.avg_children) + "\n";
     }
+    if (TwoLevelCounts c; two_level_counts(l, c))
+        o += fmt("two-level: %" PRIu64 " meshes, %" PRIu64 " instances, %" PRIu64 " top-level nodes; triangles %" PRIu64
+                 " distinct, %" PRIu64 " instanced (%.2fx)\n",
+                 c.meshes, c.instances, c.top_nodes, c.distinct, c.instanced,
+                 c.distinct ? double(c.instanced) / double(c.distinct) : 0.0);
     for (const uint32_t type : {kSectionBvh2Leaves, kSectionBvh2}) {
         const SectionEntry* e = l.find(type);
         if (e == nullptr || e->element_size != sizeof(Bvh2Node)) continue;
@@ -139,6 +182,10 @@ std::string describe_json(const FileLayout& l, bool decode_content) {
         o += ", \"sah_binary\": " + num(bi.sah_binary) + ", \"sah_wide\": " + num(bi.sah_wide) +
              ", \"avg_children\": " + num(bi.avg_children) + "}";
     }
+    if (TwoLevelCounts c; two_level_counts(l, c))
+        o += fmt(",\n  \"two_level\": {\"meshes\": %" PRIu64 ", \"instances\": %" PRIu64 ", \"top_nodes\": %" PRIu64
+                 ", \"distinct_triangles\": %" PRIu64 ", \"instanced_triangles\": %" PRIu64 "}",
+                 c.meshes, c.instances, c.top_nodes, c.distinct, c.instanced);
     if (decode_content) {
         auto list = [&](const char* key, uint32_t type, auto one) {
             const SectionEntry* e = l.find(type);
@@ -175,6 +222,21 @@ std::string describe_json(const FileLayout& l, bool decode_content) {
         };
         list("bvh2", kSectionBvh2, [&](const SectionEntry& e, uint64_t i) { bvh2_node(e, i, false); });
         list("bvh2_leaf_ranges", kSectionBvh2Leaves, [&](const SectionEntry& e, uint64_t i) { bvh2_node(e, i, true); });
+        list("meshes", kSectionMeshes, [&](const SectionEntry& e, uint64_t i) {
+            const auto m = element<MeshRecord>(l, e, i);
+            o += fmt("{\"node_first\": %u, \"node_count\": %u, \"tri_first\": %u, \"tri_count\": %u, "
+                     "\"prim_first\": %u, \"prim_count\": %u, ",
+                     m.node_first, m.node_count, m.tri_first, m.tri_count, m.prim_first, m.prim_count);
+            o += "\"lo\": " + vec3(m.lo) + ", \"hi\": " + vec3(m.hi) + fmt(", \"source_mesh\": %u}", m.source_mesh);
+        });
+        list("instances", kSectionInstances, [&](const SectionEntry& e, uint64_t i) {
+            const auto n = element<InstanceRecord>(l, e, i);
+            o += "{\"object_to_world\": " + matrix(n.object_to_world) + ", \"world_to_object\": " +
+                 matrix(n.world_to_object) + fmt(", \"mesh\": %u, \"source_node\": %u, ", n.mesh, n.source_node) +
+                 "\"world_lo\": " + vec3(n.world_lo) + ", \"world_hi\": " + vec3(n.world_hi) + "}";
+        });
+        list("top_nodes", kSectionTopNodes,
+             [&](const SectionEntry& e, uint64_t i) { node_json(o, element<CwbvhNode>(l, e, i)); });
     }
     o += "\n}\n";
     return o;

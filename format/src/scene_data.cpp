@@ -13,6 +13,11 @@ void add_scene_sections(Writer& writer, const SceneSections& scene) {
     add(kSectionTriangles, sizeof(TriangleRecord), scene.triangles.size(), scene.triangles.data());
     add(kSectionSourceMap, sizeof(SourceRange), scene.source_ranges.size(), scene.source_ranges.data());
     add(kSectionBounds, sizeof(SceneBounds), 1, scene.bounds);
+    if (scene.two_level()) {  // all three or none (rule 6001); an empty one fails validation (4011)
+        add(kSectionMeshes, sizeof(MeshRecord), scene.meshes.size(), scene.meshes.data());
+        add(kSectionInstances, sizeof(InstanceRecord), scene.instances.size(), scene.instances.data());
+        add(kSectionTopNodes, sizeof(CwbvhNode), scene.top_nodes.size(), scene.top_nodes.data());
+    }
     if (scene.build_info) add(kSectionBuildInfo, sizeof(BuildInfo), 1, scene.build_info);
     if (!scene.source_names.empty())
         add(kSectionSourceNames, 1, scene.source_names.size(), scene.source_names.data());
@@ -35,6 +40,9 @@ SceneSections SceneData::sections() const {
     s.bvh2_leaf_ranges = bvh2_leaf_ranges;
     s.vertices = vertices;
     s.indices = indices;
+    s.meshes = meshes;
+    s.instances = instances;
+    s.top_nodes = top_nodes;
     return s;
 }
 
@@ -50,6 +58,9 @@ SceneData SceneData::copy_of(const SceneSections& s) {
     d.vertices.assign(s.vertices.begin(), s.vertices.end());
     d.indices.assign(s.indices.begin(), s.indices.end());
     d.source_names.assign(s.source_names.begin(), s.source_names.end());
+    d.meshes.assign(s.meshes.begin(), s.meshes.end());
+    d.instances.assign(s.instances.begin(), s.instances.end());
+    d.top_nodes.assign(s.top_nodes.begin(), s.top_nodes.end());
     return d;
 }
 

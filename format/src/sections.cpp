@@ -26,7 +26,7 @@ std::string section_name(uint32_t type) {
 
 uint32_t default_section_flags(uint32_t type) {
     const SectionInfo* info = find_section_info(type);
-    return info != nullptr && info->mandatory ? uint32_t(kSectionRequired) : 0u;
+    return info != nullptr && info->required ? uint32_t(kSectionRequired) : 0u;
 }
 
 }  // namespace cwbvh

@@ -38,6 +38,9 @@ Result validate_section(const FileLayout& layout, const SectionEntry& entry, boo
         case kSectionVertices: return check_vertices(payload, n);
         case kSectionIndices: return check_indices(layout, payload, n);
         case kSectionSourceNames: return check_source_names(payload);
+        case kSectionMeshes: return check_meshes(layout, payload, n);
+        case kSectionInstances: return check_instances(layout, payload, n);
+        case kSectionTopNodes: return check_top_nodes(layout, payload, n);
         default: return Result::success();  // unknown optional section: skipped
     }
 }

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "cwbvh/format/status.h"
 #include "cwbvh/format/validate.h"
@@ -38,5 +39,12 @@ Result check_bvh2(const FileLayout& layout, std::span<const uint8_t> payload, ui
 Result check_vertices(std::span<const uint8_t> payload, uint64_t count);
 Result check_indices(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count);
 Result check_source_names(std::span<const uint8_t> payload);
+// Two-level sections (spec 3.9-3.11).
+/// MESH's records with the tiling rules 6002-6004 checked (empty if MESH is absent).
+Result load_mesh_ranges(const FileLayout& layout, std::vector<MeshRecord>& meshes);
+Result check_meshes(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count);
+Result check_instances(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count);
+/// TLAS: rules 61xx (the NODE rules + 1000, INST as leaf records) and 6041.
+Result check_top_nodes(const FileLayout& layout, std::span<const uint8_t> payload, uint64_t count);
 
 }  // namespace cwbvh::detail

@@ -136,6 +136,23 @@ Result check_counts(const FileLayout& layout) {
     }
     if (const SectionEntry* e = count(kSectionVertices); e && e->element_count > 0x100000000u)
         return bad(kSectionVertices, "more than 2^32 vertices");
+    // Two-level sections (spec 3.9): all three or none, never with a binary BVH over TRIS.
+    const int two_level = int(count(kSectionMeshes) != nullptr) + int(count(kSectionInstances) != nullptr) +
+                          int(count(kSectionTopNodes) != nullptr);
+    if (two_level != 0 && two_level != 3)
+        return fail(rule::kTwoLevelSections, "two-level file: MESH, INST and TLAS must all be present (found " +
+                                                 to_string(two_level) + " of the 3)");
+    if (two_level == 3) {
+        for (const uint32_t type : {kSectionMeshes, kSectionInstances, kSectionTopNodes}) {
+            if (count(type)->element_count == 0) return bad(type, "a two-level file needs at least 1 element");
+            if (count(type)->element_count > 0xFFFFFFFFu) return bad(type, "more than 2^32-1 elements");
+        }
+        for (const uint32_t type : {kSectionBvh2, kSectionBvh2Leaves})
+            if (count(type) != nullptr)
+                return fail(rule::kTwoLevelSections, "section " + section_name(type) +
+                                                         ": not allowed in a two-level file (it would span the "
+                                                         "meshes' object spaces as one)");
+    }
     // INDX's count is checked against the PMAP total by its content rule (5802).
     if (count(kSectionIndices) != nullptr && count(kSectionVertices) == nullptr)
         return fail(rule::kMissingSection, "section INDX: present without VERT");

@@ -11,6 +11,7 @@ static_assert(CWBVH_SECTION_NODES == cwbvh::kMaskNodes && CWBVH_SECTION_ALL == c
 static_assert(int(CWBVH_ERROR_CHECKSUM) == int(cwbvh::Status::kChecksumMismatch));
 static_assert(int(CWBVH_ERROR_INVALID_ARGUMENT) == int(cwbvh::Status::kInvalidArgument));
 static_assert(sizeof(cwbvh_source_ref) == sizeof(cwbvh::SourceRef));
+static_assert(CWBVH_SECTION_TWO_LEVEL == cwbvh::kMaskTwoLevel);
 
 struct cwbvh_file {
     cwbvh::File file;
@@ -101,6 +102,18 @@ const uint32_t* cwbvh_indices(const cwbvh_file* f, uint64_t* n) {
 }
 const char* cwbvh_source_names(const cwbvh_file* f, uint64_t* size) {
     return section_ptr<char>(f, cwbvh::kSectionSourceNames, size, 1);
+}
+int cwbvh_is_two_level(const cwbvh_file* f) {
+    return f != nullptr && f->status == CWBVH_OK && f->file.is_two_level() ? 1 : 0;
+}
+const void* cwbvh_meshes(const cwbvh_file* f, uint64_t* n) {
+    return section_ptr<void>(f, cwbvh::kSectionMeshes, n, sizeof(cwbvh::MeshRecord));
+}
+const void* cwbvh_instances(const cwbvh_file* f, uint64_t* n) {
+    return section_ptr<void>(f, cwbvh::kSectionInstances, n, sizeof(cwbvh::InstanceRecord));
+}
+const void* cwbvh_top_nodes(const cwbvh_file* f, uint64_t* n) {
+    return section_ptr<void>(f, cwbvh::kSectionTopNodes, n, sizeof(cwbvh::CwbvhNode));
 }
 const void* cwbvh_section(const cwbvh_file* f, uint32_t type, uint64_t* size) {
     return section_ptr<void>(f, type, size, 1);

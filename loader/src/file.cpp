@@ -41,6 +41,14 @@ Expected<File> File::open(const std::string& path, const OpenOptions& options) {
         r.message = path + ": " + r.message;
         return r;
     }
+    // NODE of a two-level file holds only the bottom levels; a caller that reads it
+    // without the top level would trace mesh 0 alone. Refused like an unknown
+    // required section (spec 2.4, 3.9): the caller did not ask for the two-level sections.
+    if (file.is_two_level() && (options.sections & kMaskNodes) != 0 && (options.sections & kMaskTwoLevel) == 0)
+        return fail(rule::kUnknownRequiredSection,
+                    path + ": two-level file (format 1.2: MESH, INST, TLAS): open it with the two-level "
+                           "sections selected (kMaskTwoLevel, CWBVH_SECTION_TWO_LEVEL); NODE alone holds only "
+                           "the bottom levels");
     file.sections_ = options.sections;
     return file;
 }
@@ -55,6 +63,14 @@ std::span<const uint8_t> File::section(uint32_t type) const {
 std::optional<SourceRef> File::source_of(uint32_t prim) const { return find_source(source_ranges(), prim); }
 
 uint64_t File::stored_triangle_count() const { return source_range_total(source_ranges()); }
+
+uint64_t File::instanced_triangle_count() const {
+    const std::span<const MeshRecord> m = meshes();
+    uint64_t total = 0;
+    for (const InstanceRecord& inst : instances())
+        if (inst.mesh < m.size()) total += m[inst.mesh].prim_count;  // < 2^32 * 2^32: no overflow
+    return total;
+}
 
 File::File(File&& other) noexcept { *this = std::move(other); }
 

@@ -64,6 +64,23 @@ TEST(Spec, LayoutTablesMatchStructs) {
     CWBVH_ROW(BuildInfo, reserved, "`reserved`");
     CWBVH_ROW(Bvh2Node, child, "`child[2]`");
     CWBVH_ROW(Bvh2Node, leaf_count, "`leaf_count[2]`");
+    // Format 1.2 (spec 3.9, 3.10): every field of the two-level records.
+    CWBVH_ROW(MeshRecord, node_first, "`node_first`");
+    CWBVH_ROW(MeshRecord, node_count, "`node_count`");
+    CWBVH_ROW(MeshRecord, tri_first, "`tri_first`");
+    CWBVH_ROW(MeshRecord, tri_count, "`tri_count`");
+    CWBVH_ROW(MeshRecord, prim_first, "`prim_first`");
+    CWBVH_ROW(MeshRecord, prim_count, "`prim_count`");
+    CWBVH_ROW(MeshRecord, lo, "`lo`");
+    CWBVH_ROW(MeshRecord, hi, "`hi`");
+    CWBVH_ROW(MeshRecord, source_mesh, "`source_mesh`");
+    CWBVH_ROW(MeshRecord, reserved, "`reserved`");
+    CWBVH_ROW(InstanceRecord, object_to_world, "`object_to_world`");
+    CWBVH_ROW(InstanceRecord, world_to_object, "`world_to_object`");
+    CWBVH_ROW(InstanceRecord, mesh, "`mesh`");
+    CWBVH_ROW(InstanceRecord, source_node, "`source_node`");
+    CWBVH_ROW(InstanceRecord, world_lo, "`world_lo`");
+    CWBVH_ROW(InstanceRecord, world_hi, "`world_hi`");
 #undef CWBVH_ROW
     EXPECT_TRUE(has_row(offsetof(CwbvhNode, q_hi) + 16, 8, "`q_hi[2]`"));
 }

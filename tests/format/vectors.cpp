@@ -2,6 +2,7 @@
 
 #include "cwbvh/format/node_decode.h"
 #include "format/test_util.h"
+#include "format/two_level_scene.h"
 
 namespace cwbvh::test {
 namespace {
@@ -52,7 +53,7 @@ std::vector<Vector> make_vectors() {
     SyntheticOptions o;
     o.triangles = 30;
     const SceneData small = make_synthetic_scene(o);
-    v.push_back({"two_level", file_bytes(small)});
+    v.push_back({"internal_children", file_bytes(small)});
 
     // Format 1.1: the binary BVH as BV2L, leaves of up to 3 consecutive records.
     SyntheticOptions lr;
@@ -79,6 +80,19 @@ std::vector<Vector> make_vectors() {
         std::vector<uint8_t> f = file_bytes(small);
         edit_element<CwbvhNode>(f, kSectionNodes, 0, [](CwbvhNode& n) { n.child_base = 0; });
         v.push_back({"invalid_5105_child_order", f});
+    }
+    // Format 1.2: a two-level scene (two meshes, five instances, a two-level TLAS).
+    const SceneData instanced = standard_two_level();
+    v.push_back({"instanced", file_bytes(instanced)});
+    {  // instance 1's object_to_world flattened to the plane z = 0: singular
+        std::vector<uint8_t> f = file_bytes(instanced);
+        edit_element<InstanceRecord>(f, kSectionInstances, 1, [](InstanceRecord& r) { r.object_to_world[2][2] = 0; });
+        v.push_back({"invalid_6022_singular_transform", f});
+    }
+    {  // the TLAS's second node takes instance 1, which the root's leaf holds already
+        std::vector<uint8_t> f = file_bytes(instanced);
+        edit_element<CwbvhNode>(f, kSectionTopNodes, 1, [](CwbvhNode& n) { n.tri_base = 1; });
+        v.push_back({"invalid_6109_instance_twice", f});
     }
     {  // a future major version
         std::vector<uint8_t> f = file_bytes(one);

@@ -74,6 +74,17 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         (void)cwbvh::deep_check(nodes, tris, stored);
         if (!bvh2.empty()) (void)cwbvh::deep_check_bvh2(bvh2, false, tris, stored);
         if (!bv2l.empty()) (void)cwbvh::deep_check_bvh2(bv2l, true, tris, stored);
+        // Two-level files (format 1.2): D7 over MESH, INST, TLAS and BNDS.
+        std::vector<cwbvh::MeshRecord> meshes;
+        std::vector<cwbvh::InstanceRecord> instances;
+        std::vector<cwbvh::CwbvhNode> top;
+        std::vector<cwbvh::SceneBounds> bounds;
+        section(cwbvh::kSectionMeshes, meshes);
+        section(cwbvh::kSectionInstances, instances);
+        section(cwbvh::kSectionTopNodes, top);
+        section(cwbvh::kSectionBounds, bounds);
+        if (!meshes.empty())
+            (void)cwbvh::deep_check_two_level(tris, {meshes, instances, top, bounds.empty() ? nullptr : bounds.data()});
     }
     return 0;
 }

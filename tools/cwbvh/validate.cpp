@@ -1,7 +1,7 @@
 // cwbvh validate FILE... [--no-checksums] [--deep]
 // --deep adds the geometric checks of deep_check.h (nesting of decoded boxes,
 // triangles inside their leaves, coverage of split triangles, every stored
-// triangle referenced).
+// triangle referenced; two-level files: D1-D4 per mesh and D7 on the top level).
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
@@ -56,6 +56,13 @@ int run_validate(int argc, char** argv) {
             r = deep_check_bvh2(nodes, type == kSectionBvh2Leaves, file->triangles(), stored, &bst);
             binary += "; " + section_name(type) + ": " + std::to_string(bst.unsplit_triangles + bst.split_triangles) +
                       " triangles inside their leaf-to-root boxes";
+        }
+        if (r.ok() && file->is_two_level()) {
+            // D7 (and D1 on TLAS): mesh boxes, instance world boxes, TLAS boxes, BNDS (spec 7a).
+            r = deep_check_two_level(file->triangles(),
+                                     TwoLevelView{file->meshes(), file->instances(), file->top_nodes(), file->bounds()},
+                                     &st);
+            binary += "; " + std::to_string(st.instances) + " instances inside their world and top-level boxes";
         }
         if (r.ok()) {
             std::printf("%s: valid (deep: %llu parent links, %llu triangles inside their leaf-to-root boxes, "

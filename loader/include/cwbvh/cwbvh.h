@@ -42,7 +42,10 @@ typedef enum cwbvh_status {
 #define CWBVH_SECTION_VERTICES (1u << 6)
 #define CWBVH_SECTION_INDICES (1u << 7)
 #define CWBVH_SECTION_SOURCE_NAMES (1u << 8)
-#define CWBVH_SECTION_ALL ((1u << 9) - 1u)
+/* MESH, INST and TLAS of a two-level file (format 1.2). A two-level file opened
+ * with CWBVH_SECTION_NODES but without this bit is refused (rule 4009). */
+#define CWBVH_SECTION_TWO_LEVEL (1u << 9)
+#define CWBVH_SECTION_ALL ((1u << 10) - 1u)
 
 typedef struct cwbvh_open_options {
     uint32_t struct_size;      /* sizeof(cwbvh_open_options): lets the struct grow */
@@ -90,6 +93,15 @@ const void* cwbvh_bvh2(const cwbvh_file* file, uint64_t* count);
 const float* cwbvh_vertices(const cwbvh_file* file, uint64_t* count);    /* count vertices x 3 */
 const uint32_t* cwbvh_indices(const cwbvh_file* file, uint64_t* count);  /* count triangles x 3 */
 const char* cwbvh_source_names(const cwbvh_file* file, uint64_t* size);  /* NUL-separated, size bytes */
+/* Two-level files (format 1.2, spec 3.9-3.11). cwbvh_is_two_level: 1 if the
+ * file has MESH, INST and TLAS (NODE then holds the bottom levels: mesh m's
+ * root is node meshes[m].node_first), 0 otherwise or if the open failed.
+ * The accessors return NULL/0 for a single-level file or without
+ * CWBVH_SECTION_TWO_LEVEL. */
+int cwbvh_is_two_level(const cwbvh_file* file);
+const void* cwbvh_meshes(const cwbvh_file* file, uint64_t* count);     /* 64-byte MeshRecord */
+const void* cwbvh_instances(const cwbvh_file* file, uint64_t* count);  /* 128-byte InstanceRecord, TLAS leaf order */
+const void* cwbvh_top_nodes(const cwbvh_file* file, uint64_t* count);  /* 80-byte nodes; leaves index INST */
 /* Where stored triangle `prim` (a triangle record's / hit's prim) comes from:
  * binary search over the PMAP ranges. CWBVH_OK and *out filled, or
  * CWBVH_ERROR_INVALID_ARGUMENT (NULL file/out, failed open, PMAP not selected,

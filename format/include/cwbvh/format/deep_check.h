@@ -16,6 +16,14 @@
 //      the coordinate magnitude, far below one float ulp).
 //   D4 every stored triangle 0..count-1 is referenced by at least one record
 //      (so the PMAP total is at most the TRIS count; checked before allocating).
+//   In a two-level file (spec 3.9) NODE holds one tree per mesh: deep_check
+//   walks each leaf up to its own tree's root (a node without parent), so D1-D4
+//   run per mesh, in object space, with the same call.
+// And over the top level of a two-level file, deep_check_two_level:
+//   D7 every mesh box contains its TRIS vertices; every instance's world box
+//      contains the image of its mesh box (transform_box, spec 3.10); the decoded
+//      TLAS box of its leaf slot and of every ancestor slot contains the world
+//      box; BNDS contains every world box. (Also D1 over TLAS.)
 // And over a binary BVH section (BVH2 or BV2L), deep_check_bvh2:
 //   D5 every TRIS record is in exactly one leaf (leaf ranges in range) and every
 //      stored triangle is reached.
@@ -36,7 +44,22 @@ struct DeepCheckStats {
     uint64_t unsplit_triangles = 0;  ///< checked by D2
     uint64_t split_triangles = 0;    ///< checked by D3
     uint64_t samples = 0;            ///< D3 lattice points tested
+    uint64_t instances = 0;          ///< checked by D7
 };
+
+/// The top level of a two-level file (spans into the file; bounds may be null).
+struct TwoLevelView {
+    std::span<const MeshRecord> meshes;
+    std::span<const InstanceRecord> instances;
+    std::span<const CwbvhNode> top_nodes;
+    const SceneBounds* bounds = nullptr;
+};
+
+/// D7 (and D1 on TLAS) over a two-level file that passed validate(); `triangles` is
+/// TRIS. Adds to `stats` (internal_edges, instances) without resetting it, so it can
+/// follow deep_check() with the same stats.
+[[nodiscard]] Result deep_check_two_level(std::span<const TriangleRecord> triangles, const TwoLevelView& scene,
+                                          DeepCheckStats* stats = nullptr);
 
 /// `stored_triangles`: the number of stored triangles (PMAP total); every
 /// TRIS.prim must be below it (the structural validator guarantees this).

@@ -22,8 +22,9 @@ inline constexpr uint8_t kMagic[12] = {0xAB, 'C', 'W', 'B', 'V', 'H',
 inline constexpr uint16_t kVersionMajor = 1;
 /// Newest minor this code writes and knows (a writer stamps the lowest minor
 /// that covers the sections it writes: sections.h, SectionInfo::since_minor).
-/// 1.1 added the optional BV2L section.
-inline constexpr uint16_t kVersionMinor = 1;
+/// 1.1 added the optional BV2L section; 1.2 the two-level sections MESH, INST,
+/// TLAS (required when present, so a 1.1 reader rejects such a file).
+inline constexpr uint16_t kVersionMinor = 2;
 /// Every section's offset is a multiple of this (cache line; mmap-friendly;
 /// lets a GPU copy a section with aligned 16-byte vector loads).
 inline constexpr uint64_t kSectionAlignment = 64;

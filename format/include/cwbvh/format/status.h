@@ -32,7 +32,7 @@ enum class Status : int {
 const char* status_name(Status s);
 
 /// Validation rule IDs (1xxx I/O, 2xxx identity/version, 3xxx header,
-/// 4xxx section table, 5xxx section content).
+/// 4xxx section table, 5xxx section content, 6xxx two-level content).
 namespace rule {
 // 1xxx: I/O (loader)
 inline constexpr uint32_t kOpenFailed = 1001;
@@ -115,6 +115,36 @@ inline constexpr uint32_t kIndexRange = 5801;
 inline constexpr uint32_t kIndexCount = 5802;
 // 59xx: SRCN
 inline constexpr uint32_t kNamesTerminator = 5901;
+// 60xx: two-level scenes (format 1.2): MESH 600x, INST 602x, both levels 604x
+inline constexpr uint32_t kTwoLevelSections = 6001;
+inline constexpr uint32_t kMeshNodeRange = 6002;
+inline constexpr uint32_t kMeshTriRange = 6003;
+inline constexpr uint32_t kMeshPrimRange = 6004;
+inline constexpr uint32_t kMeshBounds = 6005;
+inline constexpr uint32_t kMeshReserved = 6006;
+inline constexpr uint32_t kMeshPrim = 6007;
+inline constexpr uint32_t kInstNonFinite = 6021;
+inline constexpr uint32_t kInstCondition = 6022;
+inline constexpr uint32_t kInstInverse = 6023;
+inline constexpr uint32_t kInstMesh = 6024;
+inline constexpr uint32_t kInstWorldBox = 6025;
+inline constexpr uint32_t kTwoLevelDepth = 6041;
+// 61xx: TLAS, the NODE rules 51xx on the top level with INST in place of TRIS (ID + 1000)
+inline constexpr uint32_t kTlasRuleOffset = 1000;
+inline constexpr uint32_t kTlasExponent = kNodeExponent + kTlasRuleOffset;
+inline constexpr uint32_t kTlasMeta = kNodeMeta + kTlasRuleOffset;
+inline constexpr uint32_t kTlasImask = kNodeImask + kTlasRuleOffset;
+inline constexpr uint32_t kTlasChildRange = kNodeChildRange + kTlasRuleOffset;
+inline constexpr uint32_t kTlasChildOrder = kNodeChildOrder + kTlasRuleOffset;
+inline constexpr uint32_t kTlasParents = kNodeParents + kTlasRuleOffset;
+inline constexpr uint32_t kTlasLeafRange = kNodeLeafRange + kTlasRuleOffset;
+inline constexpr uint32_t kTlasLeafLayout = kNodeLeafLayout + kTlasRuleOffset;
+inline constexpr uint32_t kTlasInstanceUse = kNodeTriangleUse + kTlasRuleOffset;
+inline constexpr uint32_t kTlasPlaneOrder = kNodePlaneOrder + kTlasRuleOffset;
+inline constexpr uint32_t kTlasEmptySlot = kNodeEmptySlot + kTlasRuleOffset;
+inline constexpr uint32_t kTlasNonFinite = kNodeNonFinite + kTlasRuleOffset;
+inline constexpr uint32_t kTlasDepth = kNodeDepth + kTlasRuleOffset;
+inline constexpr uint32_t kTlasEmpty = kNodeEmpty + kTlasRuleOffset;
 /// Every rule ID above (a test checks this list against the spec's table).
 inline constexpr uint32_t kAll[] = {
     kOpenFailed,      kNotRegularFile,     kEmptyFile,
@@ -139,7 +169,16 @@ inline constexpr uint32_t kAll[] = {
     kBvh2LeafRange,   kBvh2InternalCount,  kVertNonFinite,
     kIndexRange,      kIndexCount,         kNamesTerminator,
     kTrailingBytes,   kNodeEmpty,          kPmapTotal,
-    kBvh2TriangleUse,
+    kBvh2TriangleUse, kTwoLevelSections,   kMeshNodeRange,
+    kMeshTriRange,    kMeshPrimRange,      kMeshBounds,
+    kMeshReserved,    kMeshPrim,           kInstNonFinite,
+    kInstCondition,   kInstInverse,        kInstMesh,
+    kInstWorldBox,    kTwoLevelDepth,      kTlasExponent,
+    kTlasMeta,        kTlasImask,          kTlasChildRange,
+    kTlasChildOrder,  kTlasParents,        kTlasLeafRange,
+    kTlasLeafLayout,  kTlasInstanceUse,    kTlasPlaneOrder,
+    kTlasEmptySlot,   kTlasNonFinite,      kTlasDepth,
+    kTlasEmpty,
 };
 }  // namespace rule
 

@@ -85,6 +85,23 @@ CWBVH_HD CWBVH_INLINE float sub_rn(float a, float b) {
     return a - b;
 #endif
 }
+/// One fused multiply-add, rounded once (never split into a product and a sum).
+CWBVH_HD CWBVH_INLINE float fma_rn(float a, float b, float c) {
+#if defined(__CUDA_ARCH__)
+    return __fmaf_rn(a, b, c);
+#else
+    return __builtin_fmaf(a, b, c);
+#endif
+}
+/// |x| as an operand modifier on the device (fabsf: free in FADD/FFMA; fp.h's abs_f
+/// works on the bits and costs a LOP3 there).
+CWBVH_HD CWBVH_INLINE float abs_fm(float x) {
+#if defined(__CUDA_ARCH__)
+    return fabsf(x);
+#else
+    return abs_f(x);
+#endif
+}
 CWBVH_HD CWBVH_INLINE double mul_rn(double a, double b) {
 #if defined(__CUDA_ARCH__)
     return __dmul_rn(a, b);

@@ -128,23 +128,7 @@ CWBVH_HD CWBVH_INLINE uint32_t shl_wrap(uint32_t b, uint32_t c) {
     return b << (c & 31u);
 #endif
 }
-CWBVH_HD CWBVH_INLINE float fma_rn(float a, float b, float c) {
-#if defined(__CUDA_ARCH__)
-    return __fmaf_rn(a, b, c);
-#else
-    return __builtin_fmaf(a, b, c);
-#endif
-}
 CWBVH_HD CWBVH_INLINE int32_t float_as_int(float f) { return int32_t(float_to_bits(f)); }
-/// |x| as an operand modifier on the device (fabsf: free in FADD/FFMA; fp.h's abs_f
-/// works on the bits and costs a LOP3 there).
-CWBVH_HD CWBVH_INLINE float abs_fm(float x) {
-#if defined(__CUDA_ARCH__)
-    return fabsf(x);
-#else
-    return abs_f(x);
-#endif
-}
 
 /// F = 1 + q 2^-15 for byte s (0..3) of w: bytes (0x00, q, 0x80, 0x3F). `one` is
 /// the bit pattern of 1.0f from an operand the compiler cannot fold (the kernel's launch

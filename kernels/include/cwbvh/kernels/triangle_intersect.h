@@ -148,11 +148,74 @@ CWBVH_HD CWBVH_INLINE bool watertight_edges(const WatertightRay& w, const float*
     return !((e.eu < 0.0f || e.ev < 0.0f || e.ew < 0.0f) && (e.eu > 0.0f || e.ev > 0.0f || e.ew > 0.0f));
 }
 
+/// The watertight test's second stage, in float: true when the hit distance T of the
+/// triangle's plane lies certainly outside [tmin, tmax] (a miss, decided without
+/// double precision); false when float cannot decide (the caller then runs plane_t in
+/// double, as before). Most triangles whose edge signs agree lie behind the closest hit
+/// found so far, and this stage rejects them in about 50 float instructions instead of
+/// the double path's 200 (issue 18).
+///
+/// Exact quantities (axes permuted as in w; o, d the ray): E1 = v1 - v0, E2 = v2 - v0,
+/// N = E1 x E2, A = v0 - o, NUM = N.A, DEN = N.d, T = NUM / DEN (plane_t computes the
+/// same T). The float values below carry these bounds (u = 2^-24, every operation
+/// rounded to nearest, fma_rn rounding once; first order, the second-order terms are
+/// below u^2 of the same sums):
+///   e1, e2, a: relative error <= u each (a difference that is subnormal is exact);
+///   n_i = fma(e1_j, e2_k, -RN(e1_k e2_j)): |n_i - N_i| <= 4u P_i + 2^-149,
+///     P_i = |e1_j e2_k| + |e1_k e2_j| (computed as fma(|e1_j|, |e2_k|, |RN(e1_k e2_j)|));
+///   num = fma-dot(n, a): |num - NUM| <= (3u + 4u + u) sum P_i |a_i| + 2^-149 (sum |a_i| + 2);
+///   den = fma-dot(n, d) (d exact): |den - DEN| <= 7u sum P_i |d_i| + 2^-149 (sum |d_i| + 2),
+///     sum |d_i| <= 3 |d_kz| (kz is the dominant axis);
+/// where the 2^-149 terms cover products and sums that land in the subnormal range
+/// (absolute error <= 2^-150 each). Slack: en = 2^-20 M_num + 2^-146 (sum |a_i| + 1)
+/// and ed = 2^-20 M_den + 2^-144 |d_kz| + 2^-146, M = the computed sums of P_i |.|:
+/// 16u instead of 8u leaves 8u of the sums for the roundings of the comparisons below
+/// (at most 4u of each side; |den| <= M_den (1 + 8u)), and the absolute terms are
+/// 4-8 times what the subnormal range needs.
+/// With den' = |den| > ed the sign of DEN is den's; num' = num with den's sign flipped in:
+///   far:  tmax >= 0 and RN(num' - en) > RN(tmax RN(den' + ed))  =>  T > tmax;
+///   near: tmin >= 0 and RN(num' + en) < RN(tmin RN(den' - ed))  =>  T < tmin
+///         (num' + en < 0 means NUM < 0: T < 0 <= tmin).
+/// Overflow: with P_x + P_y + P_z < 2^126 every |n_i| is finite; a num or den that
+/// overflows has an infinite M, so en or ed is infinite and every comparison above is
+/// false (inf - inf is NaN); NaN anywhere makes them false too. A triangle this stage
+/// rejects is one plane_t would reject: its double t is within 2^-40 of T relative,
+/// far inside the 16u margin.
+CWBVH_HD CWBVH_INLINE bool watertight_range_miss(const WatertightRay& w, const float* v0, const float* v1,
+                                                 const float* v2, float tmin, float tmax) {
+    const float px0 = pick3(v0, w.kx()), py0 = pick3(v0, w.ky()), pz0 = pick3(v0, w.kz());
+    const float e1x = sub_rn(pick3(v1, w.kx()), px0), e1y = sub_rn(pick3(v1, w.ky()), py0);
+    const float e1z = sub_rn(pick3(v1, w.kz()), pz0);
+    const float e2x = sub_rn(pick3(v2, w.kx()), px0), e2y = sub_rn(pick3(v2, w.ky()), py0);
+    const float e2z = sub_rn(pick3(v2, w.kz()), pz0);
+    const float ax = sub_rn(px0, w.ox), ay = sub_rn(py0, w.oy), az = sub_rn(pz0, w.oz);
+    const float mx = mul_rn(e1z, e2y), my = mul_rn(e1x, e2z), mz = mul_rn(e1y, e2x);
+    const float nx = fma_rn(e1y, e2z, -mx), ny = fma_rn(e1z, e2x, -my), nz = fma_rn(e1x, e2y, -mz);
+    const float Px = fma_rn(abs_fm(e1y), abs_fm(e2z), abs_fm(mx));
+    const float Py = fma_rn(abs_fm(e1z), abs_fm(e2x), abs_fm(my));
+    const float Pz = fma_rn(abs_fm(e1x), abs_fm(e2y), abs_fm(mz));
+    if (!(add_rn(add_rn(Px, Py), Pz) < 8.5070591730234616e+37f)) return false;  // 2^126; NaN
+    const float num = fma_rn(nx, ax, fma_rn(ny, ay, mul_rn(nz, az)));
+    const float den = fma_rn(nx, w.dx, fma_rn(ny, w.dy, mul_rn(nz, w.dz)));
+    const float Mn = fma_rn(Px, abs_fm(ax), fma_rn(Py, abs_fm(ay), mul_rn(Pz, abs_fm(az))));
+    const float Md = fma_rn(Px, abs_fm(w.dx), fma_rn(Py, abs_fm(w.dy), mul_rn(Pz, abs_fm(w.dz))));
+    const float sa = add_rn(add_rn(abs_fm(ax), abs_fm(ay)), abs_fm(az));
+    const float en = fma_rn(Mn, 9.5367431640625e-07f, fma_rn(sa, 1.1210387714598537e-44f, 1.1210387714598537e-44f));
+    const float ed = fma_rn(Md, 9.5367431640625e-07f, fma_rn(abs_fm(w.dz), 4.4841550858394146e-44f, 1.1210387714598537e-44f));
+    const float dp = abs_fm(den);
+    const float np = bits_to_float(float_to_bits(num) ^ (float_to_bits(den) & 0x80000000u));
+    if (!(dp > ed)) return false;  // the sign of DEN is not certain (or NaN)
+    const bool far = tmax >= 0.0f && sub_rn(np, en) > mul_rn(tmax, add_rn(dp, ed));
+    const bool near = tmin >= 0.0f && add_rn(np, en) < mul_rn(tmin, sub_rn(dp, ed));
+    return far || near;
+}
+
 CWBVH_HD CWBVH_INLINE bool intersect_triangle_watertight(const WatertightRay& w, const float* v0,
                                                          const float* v1, const float* v2,
                                                          float tmin, float tmax, TriangleHit& out) {
     WatertightEdges e;
     if (!watertight_edges(w, v0, v1, v2, e)) return false;
+    if (watertight_range_miss(w, v0, v1, v2, tmin, tmax)) return false;
     const float ax = e.ax, ay = e.ay, bx = e.bx, by = e.by, cx = e.cx, cy = e.cy;
     const float eu = e.eu, ev = e.ev, ew = e.ew;
 

@@ -23,7 +23,9 @@ struct OpenOptions {
     /// Known sections (SectionMask bits) to validate and hand out; the
     /// accessors of other sections return an empty span / nullptr. Header and
     /// section-table rules always run on every entry. A renderer that needs
-    /// only traversal passes kMaskNodes | kMaskTriangles.
+    /// only traversal passes kMaskNodes | kMaskTriangles (| kMaskTwoLevel: a
+    /// two-level file opened with NODE but without kMaskTwoLevel is refused,
+    /// rule 4009, as a reader that does not know the two-level sections would).
     uint32_t sections = kMaskAll;
 };
 
@@ -78,6 +80,20 @@ public:
     std::span<const uint32_t> indices() const { return view<uint32_t>(kSectionIndices); }
     /// SRCN: names each followed by NUL (a name per input file, in PMAP input order).
     std::span<const char> source_names() const { return view<char>(kSectionSourceNames); }
+
+    /// Two-level file (format 1.2, spec 3.9): the file has the MESH, INST and TLAS
+    /// sections (whether or not kMaskTwoLevel was selected). NODE then holds the
+    /// bottom levels: mesh m's root is nodes()[meshes()[m].node_first], not node 0.
+    bool is_two_level() const { return layout_.find(kSectionMeshes) != nullptr; }
+    /// MESH: the bottom levels (empty for a single-level file or if kMaskTwoLevel was not selected).
+    std::span<const MeshRecord> meshes() const { return view<MeshRecord>(kSectionMeshes); }
+    /// INST: the instances, in TLAS leaf order (a TLAS leaf's "triangles" index it).
+    std::span<const InstanceRecord> instances() const { return view<InstanceRecord>(kSectionInstances); }
+    /// TLAS: the top level, root top_nodes()[0]; child_base indexes TLAS, leaves index INST.
+    std::span<const CwbvhNode> top_nodes() const { return view<CwbvhNode>(kSectionTopNodes); }
+    /// Sum over instances of their mesh's stored triangles (prim_count): the triangles
+    /// of the flattened scene; 0 unless two-level with kMaskTwoLevel selected.
+    uint64_t instanced_triangle_count() const;
 
     /// Payload of a section that was selected and validated (empty if absent).
     std::span<const uint8_t> section(uint32_t type) const;
