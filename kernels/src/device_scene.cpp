@@ -81,18 +81,14 @@ T* alloc_and_copy(std::span<const T> src, Stager* stager, uint64_t& bytes) {
 }  // namespace
 
 TwoLevelSections two_level_sections(const File& file) {
-    // The loader's validated section payloads (format 1.2: MESH, INST, TLAS).
-    const std::span<const uint8_t> top = file.section(kSectionTopNodes);
-    const std::span<const uint8_t> inst = file.section(kSectionInstances);
-    const std::span<const uint8_t> mesh = file.section(kSectionMeshes);
     TwoLevelSections t;
-    if (top.empty()) return t;
-    t.top_nodes = reinterpret_cast<const CwbvhNode*>(top.data());
-    t.top_node_count = top.size() / sizeof(CwbvhNode);
-    t.instances = reinterpret_cast<const InstanceRecord*>(inst.data());
-    t.instance_count = inst.size() / sizeof(InstanceRecord);
-    t.meshes = reinterpret_cast<const MeshRecord*>(mesh.data());
-    t.mesh_count = mesh.size() / sizeof(MeshRecord);
+    if (!file.is_two_level() || file.top_nodes().empty()) return t;  // or kMaskTwoLevel not selected
+    t.top_nodes = file.top_nodes().data();
+    t.top_node_count = file.top_nodes().size();
+    t.instances = file.instances().data();
+    t.instance_count = file.instances().size();
+    t.meshes = file.meshes().data();
+    t.mesh_count = file.meshes().size();
     return t;
 }
 
