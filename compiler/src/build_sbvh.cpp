@@ -571,6 +571,9 @@ public:
     std::unique_ptr<Piece> build(RefList& refs, uint64_t budget) {
         return build_piece(refs, budget, 0, 0, scene_.triangle_count());
     }
+    /// The same over references that are not triangles of scene_ (build_boxes):
+    /// budget 0, so no spatial split ever reads a triangle.
+    std::unique_ptr<Piece> build_object_only(RefList& refs) { return build_piece(refs, 0, 0, 0, refs.size()); }
 
     uint64_t spatial_splits() const { return spatial_splits_.load(); }
     uint64_t object_splits() const { return object_splits_.load(); }
@@ -1222,6 +1225,38 @@ Result build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out,
     uint64_t leaves = 0;
     for (const BinaryNode& n : out.nodes) leaves += n.is_leaf() ? 1 : 0;
     out.references = leaves;
+    return Result::success();
+}
+
+Result build_boxes(const std::vector<Aabb>& boxes, const SbvhConfig& config, BinaryBvh& out) {
+    out = BinaryBvh{};
+    const size_t n = boxes.size();
+    if (n == 0) return Result::fail(Status::kInvalidArgument, 0, "build_boxes: no boxes");
+    if (n >= kInvalidIndex / 4) return Result::fail(Status::kInvalidArgument, 0, "build_boxes: too many boxes");
+    for (size_t i = 0; i < n; ++i) {
+        for (int a = 0; a < 3; ++a) {
+            if (!std::isfinite(boxes[i].lo[a]) || !std::isfinite(boxes[i].hi[a]) || !(boxes[i].lo[a] <= boxes[i].hi[a]))
+                return Result::fail(Status::kInvalidArgument, 0,
+                                    "build_boxes: box " + std::to_string(i) + " is empty or not finite");
+        }
+    }
+    static const Scene kNoTriangles;  // never read: no reference budget, no spatial split
+    auto run = [&] {
+        RefList refs(n);
+        for (size_t i = 0; i < n; ++i) refs[i] = Ref{boxes[i], uint32_t(i)};
+        Builder builder(kNoTriangles, config, nullptr);
+        const std::unique_ptr<Piece> root = builder.build_object_only(refs);
+        out.nodes.reserve(piece_nodes(*root));
+        flatten(*root, out.nodes);
+        out.object_splits = builder.object_splits();
+    };
+    if (config.threads > 0) {
+        tbb::task_arena arena(config.threads);
+        arena.execute(run);
+    } else {
+        run();
+    }
+    out.references = n;
     return Result::success();
 }
 

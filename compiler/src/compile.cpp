@@ -18,6 +18,7 @@
 #include "cwbvh/compiler/import.h"
 #include "cwbvh/compiler/model.h"
 #include "cwbvh/compiler/progress.h"
+#include "cwbvh/compiler/two_level.h"
 
 namespace cwbvh::compiler {
 namespace {
@@ -73,20 +74,85 @@ private:
     Progress* progress_;
 };
 
+/// The core settings cwbvhc's options choose.
+CoreOptions core_options(const CompileOptions& options) {
+    CoreOptions core;
+    core.sbvh.split_alpha = options.split_alpha;
+    core.sbvh.threads = options.threads;
+    core.sbvh.max_reference_growth = options.max_reference_growth;
+    core.collapse.kind = options.collapse;
+    core.collapse.cost_prim = options.collapse_cost_prim;
+    core.emit.builder = options.builder;
+    core.emit.bvh2 = options.keep_sbvh ? Bvh2Section::kLeafRanges : Bvh2Section::kNone;
+    core.emit.keep_mesh = options.keep_mesh;
+    core.emit.verify = options.verify;
+    return core;
+}
+
+/// Two-level file (issue 19): every distinct mesh through the core, the top
+/// level over the instances, then the write.
+Result compile_two_level_phases(const CompileOptions& options, InstancedScene& scene, PhaseTimer& timer,
+                                CompileStats& stats, Progress* progress) {
+    const std::string& file = options.inputs.front();
+    Result r;
+    for (Scene& mesh : scene.meshes)
+        if (r = make_scene_source_ranges(mesh, options.verify); !r.ok()) return r;
+    stats.two_level = true;
+    stats.input_triangles = scene.input_triangles;
+    stats.dropped_triangles = scene.dropped;
+    stats.skipped_primitives = scene.skipped_primitives;
+    stats.triangles = scene.distinct_triangles();
+    stats.instanced_triangles = scene.instanced_triangles();
+    stats.meshes = scene.meshes.size();
+    stats.instances = scene.placements.size();
+    const PhaseRunner run = [&](const std::string& name, uint64_t units, const std::function<bool()>& body) {
+        return timer.run(name, units, body);
+    };
+    TwoLevelResult result;
+    if (r = compile_two_level(scene, core_options(options), file, result, run, progress); !r.ok()) return r;
+    InstancedScene{}.meshes.swap(scene.meshes);  // the triangles are in the records now
+    stats.references = result.references;
+    stats.spatial_splits = result.spatial_splits;
+    stats.binary_nodes = result.binary_nodes;
+    stats.sah_binary = result.sah_binary;
+    stats.wide_nodes = result.nodes.size();
+    stats.wide_depth = result.wide_depth;
+    stats.avg_children = result.avg_children;
+    stats.max_leaf_triangles = result.max_leaf_triangles;
+    stats.sah_wide = result.sah_wide;
+    stats.top_nodes = result.tlas.size();
+    stats.top_depth = result.tlas_depth;
+    stats.mesh_phase_seconds = result.mesh_phase_seconds;
+    if (!timer.run("write", 0, [&] {
+            r = write_two_level(result, options.output, stats.bytes, stats.file_bytes);
+            return r.ok();
+        }))
+        return r;
+    stats.peak_rss_bytes = peak_rss_bytes();
+    return Result::success();
+}
 
 Result compile_phases(const CompileOptions& options, CompileStats& stats, const PhaseCallback& on_phase,
                       Progress* progress) {
     PhaseTimer timer(stats, on_phase, progress);
 
     Scene scene;
+    InstancedScene instanced;
+    bool two_level = false;
     Result r;
     if (!timer.run("import", 0, [&] {
             ImportOptions import_options;
             import_options.allow_parent_uris = options.allow_parent_uris;
-            r = import_scene(options.inputs, import_options, scene, stats.warnings);
+            // Embree, BV2L and VERT/INDX are single-level features: they imply --flatten.
+            const bool flatten = options.flatten || options.builder != kBuilderSbvh || options.keep_sbvh ||
+                                 options.keep_mesh;
+            r = flatten ? import_scene(options.inputs, import_options, scene, stats.warnings)
+                                : import_scene_instanced(options.inputs, import_options, scene, instanced, two_level,
+                                                         stats.warnings);
             return r.ok();
         }))
         return r;
+    if (two_level) return compile_two_level_phases(options, instanced, timer, stats, progress);
     // The per-triangle source map becomes PMAP runs now, not at the end: it
     // would be alive through the SBVH and collapse peaks (16 bytes per triangle).
     if (r = make_scene_source_ranges(scene, options.verify); !r.ok()) return r;
@@ -94,6 +160,7 @@ Result compile_phases(const CompileOptions& options, CompileStats& stats, const 
     stats.dropped_triangles = scene.dropped;
     stats.skipped_primitives = scene.skipped_primitives;
     stats.triangles = scene.triangle_count();
+    stats.instanced_triangles = stats.triangles;
     if (scene.triangle_count() == 0) {
         return Result::fail(Status::kBadInput, 0,
                             options.inputs.front() + (options.inputs.size() > 1 ? " (and others)" : "") +
@@ -116,14 +183,7 @@ Result compile_phases(const CompileOptions& options, CompileStats& stats, const 
     stats.binary_nodes = binary.nodes.size();
 
     // Everything from the binary tree on is the core's (core.h).
-    CoreOptions core;
-    core.sbvh = sbvh_config;
-    core.collapse.kind = options.collapse;
-    core.collapse.cost_prim = options.collapse_cost_prim;
-    core.emit.builder = options.builder;
-    core.emit.bvh2 = options.keep_sbvh ? Bvh2Section::kLeafRanges : Bvh2Section::kNone;
-    core.emit.keep_mesh = options.keep_mesh;
-    core.emit.verify = options.verify;
+    CoreOptions core = core_options(options);
     const PhaseRunner run = [&](const std::string& name, uint64_t units, const std::function<bool()>& body) {
         return timer.run(name, units, body);
     };

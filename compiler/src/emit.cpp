@@ -218,10 +218,20 @@ SceneSections scene_sections(const Scene& scene, const EmitResult& e) {
     return s;
 }
 
-Result write_scene(const Scene& scene, const EmitResult& e, const std::string& path,
-                 std::vector<std::pair<std::string, uint64_t>>& bytes, uint64_t& file_bytes) {
-    Writer writer;
-    add_scene_sections(writer, scene_sections(scene, e));
+void add_scene_sections(Writer& writer, const SceneSections& scene, const TwoLevelSections& t) {
+    cwbvh::add_scene_sections(writer, scene);
+    if (t.meshes.empty() && t.instances.empty() && t.tlas.empty()) return;
+    auto add = [&](uint32_t type, uint32_t element_size, uint64_t count, const void* data) {
+        writer.add_section(type, kSectionRequired, element_size, count,
+                           std::span<const uint8_t>(static_cast<const uint8_t*>(data), element_size * count));
+    };
+    add(kSectionMeshes, sizeof(MeshRecord), t.meshes.size(), t.meshes.data());
+    add(kSectionInstances, sizeof(InstanceRecord), t.instances.size(), t.instances.data());
+    add(kSectionTopNodes, sizeof(CwbvhNode), t.tlas.size(), t.tlas.data());
+}
+
+Result write_with(const Writer& writer, const std::string& path, std::vector<std::pair<std::string, uint64_t>>& bytes,
+                  uint64_t& file_bytes) {
     FileHeader header{};
     std::vector<SectionEntry> table;
     if (Result r = writer.layout(header, table); !r.ok())
@@ -231,6 +241,13 @@ Result write_scene(const Scene& scene, const EmitResult& e, const std::string& p
     for (const auto& s : table) bytes.emplace_back(section_name(s.type), s.size);
     file_bytes = header.file_size;
     return Result::success();
+}
+
+Result write_scene(const Scene& scene, const EmitResult& e, const std::string& path,
+                 std::vector<std::pair<std::string, uint64_t>>& bytes, uint64_t& file_bytes) {
+    Writer writer;
+    add_scene_sections(writer, scene_sections(scene, e));
+    return write_with(writer, path, bytes, file_bytes);
 }
 
 Result scene_bytes(const Scene& scene, const EmitResult& e, std::vector<uint8_t>& out) {

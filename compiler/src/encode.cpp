@@ -337,4 +337,31 @@ Result encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out, f
     return Result::success();
 }
 
+Result encode_leaf_order(const WideBvh& wide, const EncodedTree& tree, std::vector<uint32_t>& order) {
+    if (tree.nodes.empty() || tree.node_to_wide.size() != tree.nodes.size())
+        return Result::fail(Status::kInvalidArgument, 0, "encode: leaf order before the nodes are laid out");
+    order.assign(size_t(tree.records), kInvalidIndex);
+    std::vector<uint8_t> seen(wide.leaf_refs.size(), 0);
+    for (size_t i = 0; i < tree.nodes.size(); ++i) {
+        const WideNode& node = wide.nodes[tree.node_to_wide[i]];
+        uint32_t record = tree.nodes[i].tri_base;
+        for (int s = 0; s < kWidth; ++s) {
+            const WideChild& ch = node.slots[s];
+            if (ch.kind != WideChild::kLeaf) continue;
+            for (uint32_t k = 0; k < ch.ref_count; ++k, ++record) {
+                const uint32_t ref = ch.first_ref + k;
+                if (record >= order.size() || ref >= wide.leaf_refs.size() || seen[ref]++ != 0 ||
+                    order[record] != kInvalidIndex)
+                    return Result::fail(Status::kInvalidArgument, 0,
+                                        "encode: leaf reference " + std::to_string(ref) + " misplaced");
+                order[record] = wide.leaf_refs[ref];
+            }
+        }
+    }
+    for (size_t r = 0; r < order.size(); ++r)
+        if (order[r] == kInvalidIndex)
+            return Result::fail(Status::kInvalidArgument, 0, "encode: record " + std::to_string(r) + " in no leaf");
+    return Result::success();
+}
+
 }  // namespace cwbvh::compiler

@@ -3,6 +3,7 @@
 #include <cctype>
 #include <cstring>
 #include <exception>
+#include <map>
 #include <cstdint>
 
 #include "cwbvh/compiler/import.h"
@@ -78,6 +79,63 @@ Result read_file_bytes(const std::string& path, std::vector<uint8_t>& bytes) {
     return without_path(read_regular_file(path, UINT64_MAX, bytes), path);
 }
 
+namespace {
+
+/// The "<path>: no triangles (all N dropped: ...)" message when `scene` gained no triangle.
+Result no_triangles(const std::string& path, uint64_t read, const std::map<std::string, uint64_t>& dropped,
+                    const std::map<std::string, uint64_t>& dropped_before) {
+    std::string error = path + ": no triangles";
+    if (read > 0) {
+        error += " (all " + std::to_string(read) + " dropped:";
+        for (const auto& [reason, n] : dropped) {
+            const auto it = dropped_before.find(reason);
+            const uint64_t d = n - (it == dropped_before.end() ? 0 : it->second);
+            if (d > 0) error += " " + std::to_string(d) + " " + reason;
+        }
+        error += ")";
+    }
+    return Result::fail(Status::kBadInput, 0, error);
+}
+
+/// clean_and_append of input `i` with import_scene's errors.
+Result append_input(const std::string& path, uint32_t i, const RawInput& raw, Scene& out) {
+    const uint64_t before = out.triangle_count(), read_before = out.input_triangles;
+    const auto dropped_before = out.dropped;
+    if (const Result c = clean_and_append(raw, i, out); !c.ok()) return Result::fail(c.status, 0, path + ": " + c.message);
+    out.input_names.push_back(path);
+    if (out.triangle_count() == before)
+        return no_triangles(path, out.input_triangles - read_before, out.dropped, dropped_before);
+    return Result::success();
+}
+
+/// The bottom levels of a glTF file kept instanced: each cleaned on its own
+/// (input 0); bottom levels left without triangles are dropped with their placements.
+Result clean_instanced(const std::string& path, const RawInstanced& raw, InstancedScene& out) {
+    std::vector<uint32_t> index(raw.meshes.size(), kInvalidIndex);
+    for (size_t k = 0; k < raw.meshes.size(); ++k) {
+        Scene s;
+        if (const Result c = clean_and_append(raw.meshes[k], 0, s); !c.ok())
+            return Result::fail(c.status, 0, path + ": " + c.message);
+        out.input_triangles += s.input_triangles;
+        for (const auto& [reason, n] : s.dropped) out.dropped[reason] += n;
+        for (const auto& [kind, n] : s.skipped_primitives) out.skipped_primitives[kind] += n;
+        if (s.triangle_count() == 0) continue;
+        s.input_names.push_back(path);
+        index[k] = uint32_t(out.meshes.size());
+        out.meshes.push_back(std::move(s));
+        out.source_mesh.push_back(raw.source_mesh[k]);
+    }
+    for (const RawPlacement& p : raw.placements) {
+        if (index[p.mesh] == kInvalidIndex) continue;
+        out.placements.push_back(Placement{index[p.mesh], p.node, p.object_to_world});
+    }
+    out.input_names.push_back(path);
+    if (out.meshes.empty()) return no_triangles(path, out.input_triangles, out.dropped, {});
+    return Result::success();
+}
+
+}  // namespace
+
 Result import_scene(const std::vector<std::string>& paths, const ImportOptions& options, Scene& out,
                     std::vector<std::string>& warnings) {
     out = Scene{};
@@ -97,31 +155,62 @@ Result import_scene(const std::vector<std::string>& paths, const ImportOptions& 
                 const Status status = r.status == Status::kOk ? Status::kBadInput : r.status;
                 return fail(status, path + ": " + (r.message.empty() ? "cannot be read" : r.message));
             }
-            const uint64_t before = out.triangle_count(), read_before = out.input_triangles;
-            const auto dropped_before = out.dropped;
-            if (const Result c = clean_and_append(raw, uint32_t(i), out); !c.ok()) {
-                return fail(c.status, path + ": " + c.message);
-            }
-            out.input_names.push_back(path);
-            if (out.triangle_count() == before) {
-                std::string error = path + ": no triangles";
-                const uint64_t read = out.input_triangles - read_before;
-                if (read > 0) {
-                    error += " (all " + std::to_string(read) + " dropped:";
-                    for (const auto& [reason, n] : out.dropped) {
-                        const auto it = dropped_before.find(reason);
-                        const uint64_t d = n - (it == dropped_before.end() ? 0 : it->second);
-                        if (d > 0) error += " " + std::to_string(d) + " " + reason;
-                    }
-                    error += ")";
-                }
-                return fail(Status::kBadInput, error);
-            }
+            if (const Result a = append_input(path, uint32_t(i), raw, out); !a.ok()) return fail(a.status, a.message);
         }
     } catch (const std::bad_alloc&) {
         return fail(Status::kBadInput, "out of memory while importing");
     } catch (const std::exception& e) {
         return fail(Status::kBadInput, std::string("unexpected error while importing: ") + e.what());
+    }
+    return Result::success();
+}
+
+Result import_scene_instanced(const std::vector<std::string>& paths, const ImportOptions& options, Scene& flat,
+                              InstancedScene& instanced, bool& is_instanced, std::vector<std::string>& warnings) {
+    is_instanced = false;
+    instanced = InstancedScene{};
+    if (paths.size() != 1) return import_scene(paths, options, flat, warnings);
+    const std::string& path = paths.front();
+    Result detect_error;
+    const Format format = detect(path, detect_error);
+    if (format != Format::kGltf && format != Format::kGlb) return import_scene(paths, options, flat, warnings);
+    flat = Scene{};
+    try {
+        RawInput raw;
+        RawInstanced raw_instanced;
+        std::vector<std::string> file_warnings;
+        const Result r = import_gltf(path, options, raw, file_warnings, &raw_instanced, &is_instanced);
+        for (const std::string& w : file_warnings) warnings.push_back(path + ": " + w);
+        if (!r.ok()) {
+            const Status status = r.status == Status::kOk ? Status::kBadInput : r.status;
+            return Result::fail(status, 0, path + ": " + (r.message.empty() ? "cannot be read" : r.message));
+        }
+        if (!is_instanced) {
+            if (Result a = append_input(path, 0, raw, flat); !a.ok()) {
+                flat = Scene{};
+                return a;
+            }
+            return Result::success();
+        }
+        if (Result c = clean_instanced(path, raw_instanced, instanced); !c.ok()) {
+            instanced = InstancedScene{};
+            return c;
+        }
+        // Every mesh placed twice lost all its triangles (points, lines,
+        // degenerate): nothing is instanced after all; the single-level file,
+        // read again exactly as import_scene reads it (its warnings already given).
+        bool placed_twice = false;
+        for (const Placement& p : instanced.placements) placed_twice = placed_twice || p.source_node != kInvalidIndex;
+        if (!placed_twice) {
+            is_instanced = false;
+            instanced = InstancedScene{};
+            std::vector<std::string> again;
+            return import_scene(paths, options, flat, again);
+        }
+    } catch (const std::bad_alloc&) {
+        return Result::fail(Status::kBadInput, 0, path + ": out of memory while importing");
+    } catch (const std::exception& e) {
+        return Result::fail(Status::kBadInput, 0, path + ": unexpected error while importing: " + e.what());
     }
     return Result::success();
 }

@@ -215,7 +215,9 @@ public:
                const ImportOptions& options, std::vector<std::string>& warnings)
         : model_(model), draco_indices_(draco_indices), options_(options), warnings_(warnings) {}
 
-    bool run(RawInput& out, std::string& error);
+    /// `instanced` (optional): keep instancing when some mesh is placed twice
+    /// (then `*is_instanced` is set and `out` stays empty).
+    bool run(RawInput& out, std::string& error, RawInstanced* instanced = nullptr, bool* is_instanced = nullptr);
 
 private:
     /// A validated view of accessor data: element i starts at
@@ -236,6 +238,13 @@ private:
                           std::string& error);
     bool emit_mesh(int mesh, const glm::dmat4& world, RawInput& out, std::string& error);
     bool local_matrix(size_t node, glm::dmat4& m, std::string& error) const;
+    /// One node that places a mesh, found by the walk.
+    struct Placed {
+        size_t node;
+        int mesh;
+        glm::dmat4 world;
+    };
+    bool emit_instanced(const std::vector<Placed>& placed, RawInstanced& out, std::string& error);
     bool quantization_used() const {
         return std::find(model_.extensionsUsed.begin(), model_.extensionsUsed.end(),
                          "KHR_mesh_quantization") != model_.extensionsUsed.end();
@@ -673,7 +682,7 @@ bool GltfReader::local_matrix(size_t node, glm::dmat4& m, std::string& error) co
     return true;
 }
 
-bool GltfReader::run(RawInput& out, std::string& error) {
+bool GltfReader::run(RawInput& out, std::string& error, RawInstanced* instanced, bool* is_instanced) {
     cache_.resize(model_.meshes.size());
     for (size_t m = 0; m < model_.meshes.size(); ++m)
         cache_[m].resize(model_.meshes[m].primitives.size());
@@ -712,6 +721,7 @@ bool GltfReader::run(RawInput& out, std::string& error) {
         glm::dmat4 world;
     };
     std::vector<Frame> stack;
+    std::vector<Placed> placed;  // only with `instanced`
     size_t visits = 0;
     auto enter = [&](int node, const glm::dmat4& parent) -> bool {
         if (node < 0 || size_t(node) >= model_.nodes.size()) {
@@ -740,7 +750,12 @@ bool GltfReader::run(RawInput& out, std::string& error) {
         state[n] = 1;
         stack.push_back(Frame{n, 0, parent * local});
         const int mesh = model_.nodes[n].mesh;
-        return mesh < 0 || emit_mesh(mesh, stack.back().world, out, error);
+        if (mesh < 0) return true;
+        if (instanced) {  // decided once the walk is done
+            placed.push_back(Placed{n, mesh, stack.back().world});
+            return true;
+        }
+        return emit_mesh(mesh, stack.back().world, out, error);
     };
     for (int root : model_.scenes[scene].nodes) {
         if (!enter(root, glm::dmat4(1.0))) return false;
@@ -756,6 +771,64 @@ bool GltfReader::run(RawInput& out, std::string& error) {
                 stack.pop_back();
             }
         }
+    }
+    if (!instanced) return true;
+    // Policy (issue 19): instances only when some mesh is placed twice;
+    // otherwise the placements are emitted in walk order, as without `instanced`.
+    std::vector<uint32_t> uses(model_.meshes.size(), 0);
+    bool shared = false;
+    for (const Placed& p : placed)
+        if (p.mesh >= 0 && size_t(p.mesh) < uses.size()) shared = ++uses[size_t(p.mesh)] > 1 || shared;
+    if (!shared) {
+        for (const Placed& p : placed)
+            if (!emit_mesh(p.mesh, p.world, out, error)) return false;
+        return true;
+    }
+    *is_instanced = true;
+    return emit_instanced(placed, *instanced, error);
+}
+
+bool GltfReader::emit_instanced(const std::vector<Placed>& placed, RawInstanced& out, std::string& error) {
+    std::vector<uint32_t> uses(model_.meshes.size(), 0), bottom(model_.meshes.size(), kInvalidIndex);
+    for (const Placed& p : placed) {
+        if (p.mesh < 0 || size_t(p.mesh) >= model_.meshes.size()) {
+            error = "mesh " + std::to_string(p.mesh) + " does not exist";
+            return false;
+        }
+        ++uses[size_t(p.mesh)];
+    }
+    // Every mesh is emitted exactly once below: its last (only) use takes the
+    // decoded triangles instead of a copy.
+    for (auto& mesh : cache_)
+        for (LocalPrimitive& lp : mesh) lp.uses_left = 1;
+    for (size_t m = 0; m < uses.size(); ++m) {
+        if (uses[m] < 2) continue;
+        bottom[m] = uint32_t(out.meshes.size());
+        out.meshes.emplace_back();
+        out.source_mesh.push_back(uint32_t(m));
+        // Object space: the identity reproduces the float input exactly.
+        if (!emit_mesh(int(m), glm::dmat4(1.0), out.meshes.back(), error)) return false;
+    }
+    RawInput merged;
+    for (const Placed& p : placed) {
+        const size_t m = size_t(p.mesh);
+        if (uses[m] >= 2) {
+            RawPlacement rp;
+            rp.node = uint32_t(p.node);
+            rp.mesh = bottom[m];
+            for (int r = 0; r < 3; ++r)
+                for (int c = 0; c < 4; ++c) rp.object_to_world[size_t(4 * r + c)] = p.world[c][r];  // glm: [column][row]
+            out.placements.push_back(rp);
+        } else if (!emit_mesh(p.mesh, p.world, merged, error)) {
+            return false;
+        }
+    }
+    if (!merged.primitives.empty() || !merged.skipped_primitives.empty()) {
+        RawPlacement rp;
+        rp.mesh = uint32_t(out.meshes.size());
+        out.meshes.push_back(std::move(merged));
+        out.source_mesh.push_back(kInvalidIndex);
+        out.placements.push_back(rp);
     }
     return true;
 }
@@ -826,9 +899,13 @@ std::vector<std::string> split_lines(const std::string& text) {
 }  // namespace
 
 Result import_gltf(const std::string& path, const ImportOptions& options, RawInput& out,
-                   std::vector<std::string>& warnings) {
+                   std::vector<std::string>& warnings, RawInstanced* instanced, bool* is_instanced) {
     auto bad = [](std::string what) { return Result::fail(Status::kBadInput, 0, std::move(what)); };
     out = RawInput{};
+    bool instanced_local = false;
+    if (instanced) *instanced = RawInstanced{};
+    if (!is_instanced) is_instanced = &instanced_local;
+    *is_instanced = false;
     try {
         std::vector<uint8_t> bytes;
         if (Result r = read_file_bytes(path, bytes); !r.ok()) return r;
@@ -873,7 +950,7 @@ Result import_gltf(const std::string& path, const ImportOptions& options, RawInp
 
         GltfReader reader(model, draco_indices, options, warnings);
         std::string error;
-        if (!reader.run(out, error)) return bad(error);
+        if (!reader.run(out, error, instanced, is_instanced)) return bad(error);
         return Result::success();
     } catch (const std::bad_alloc&) {
         return bad("out of memory while reading glTF");

@@ -16,6 +16,13 @@ std::string stats_to_json(const CompileStats& s) {
     j["skipped_primitives"] = nlohmann::ordered_json::object();
     for (const auto& [kind, n] : s.skipped_primitives) j["skipped_primitives"][kind] = n;
     j["triangles"] = s.triangles;
+    j["two_level"] = s.two_level;
+    j["meshes"] = s.meshes;
+    j["instances"] = s.instances;
+    j["distinct_triangles"] = s.triangles;
+    j["instanced_triangles"] = s.instanced_triangles;
+    j["top_nodes"] = s.top_nodes;
+    j["top_depth"] = s.top_depth;
     j["references"] = s.references;
     j["spatial_splits"] = s.spatial_splits;
     j["binary_nodes"] = s.binary_nodes;
@@ -35,6 +42,8 @@ std::string stats_to_json(const CompileStats& s) {
         total += t;
     }
     j["seconds"]["total"] = total;
+    j["mesh_phase_seconds"] = nlohmann::ordered_json::object();
+    for (const auto& [phase, t] : s.mesh_phase_seconds) j["mesh_phase_seconds"][phase] = t;
     j["peak_rss_bytes"] = s.peak_rss_bytes;
     j["peak_rss_after"] = nlohmann::ordered_json::object();
     for (const auto& [phase, b] : s.peak_rss_after) j["peak_rss_after"][phase] = b;
@@ -66,6 +75,13 @@ std::string stats_to_table(const CompileStats& s) {
     for (const auto& [kind, n] : s.skipped_primitives)
         row(("  skipped " + kind + " primitives").c_str(), num(n));
     row("triangles stored", num(s.triangles));
+    if (s.two_level) {
+        row("two-level: meshes", num(s.meshes));
+        row("two-level: instances", num(s.instances));
+        row("distinct triangles", num(s.triangles));
+        row("instanced triangles", num(s.instanced_triangles));
+        row("top-level nodes / depth", num(s.top_nodes) + " / " + num(s.top_depth));
+    }
     row("references after splits",
         num(s.references) + fmt(" (+%.2f%%)", s.triangles ? 100.0 * (double(s.references) - double(s.triangles)) /
                                                                  double(s.triangles)
@@ -84,6 +100,8 @@ std::string stats_to_table(const CompileStats& s) {
         total += t;
     }
     row("seconds total", fmt("%.3f", total));
+    for (const auto& [phase, t] : s.mesh_phase_seconds)
+        row(("mesh cpu seconds " + phase).c_str(), fmt("%.3f", t));
     row("peak memory", fmt("%.1f MiB", double(s.peak_rss_bytes) / (1024.0 * 1024.0)));
     (void)dropped;
     return out;

@@ -39,6 +39,10 @@ constexpr const char* kUsage =
     "  --allow-parent-uris    glTF: let buffer URIs with '..' read outside the input's folder\n"
     "  --stats-json PATH      write build statistics as JSON\n"
     "  --no-verify            skip the decode-and-check pass over the encoded nodes\n"
+    "  --flatten              always write a single-level file (default: a glTF input whose\n"
+    "                         meshes are placed by several nodes keeps them as instances:\n"
+    "                         a two-level file, format 1.2; --builder embree, --keep-sbvh\n"
+    "                         and --keep-mesh imply --flatten)\n"
     "  --quiet                no progress, no summary\n"
     "  -h, --help             this text\n";
 
@@ -125,6 +129,8 @@ int main(int argc, char** argv) {
             options.allow_parent_uris = true;
         } else if (arg == "--stats-json") {
             if (!value(stats_json)) return usage_error("--stats-json needs a path");
+        } else if (arg == "--flatten") {
+            options.flatten = true;
         } else if (arg == "--no-verify") {
             options.verify = false;
         } else if (arg == "--quiet" || arg == "-q") {

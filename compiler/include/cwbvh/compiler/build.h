@@ -12,6 +12,7 @@
 #include <bit>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "cwbvh/format/status.h"
 #include "cwbvh/compiler/model.h"
@@ -71,6 +72,11 @@ struct SbvhConfig {
 /// this returns true. It never influences the tree.
 Result build_sbvh(const Scene& scene, const SbvhConfig& config, BinaryBvh& out, Progress* progress = nullptr);
 Result build_embree(const Scene& scene, const SbvhConfig& config, BinaryBvh& out);
+/// The SBVH builder's object-split SAH (binned for large nodes, full sweep for
+/// small ones) over boxes instead of triangles, without spatial splits: the
+/// top level of a two-level scene. Leaf i holds box index i (BinaryNode::prim).
+/// Boxes must be finite and non-empty. Same canonical layout and determinism.
+Result build_boxes(const std::vector<Aabb>& boxes, const SbvhConfig& config, BinaryBvh& out);
 
 /// Spec formula: sum over internal nodes C_node*A(n)/A(root) + sum over leaves
 /// C_prim*A(leaf)/A(root), A = surface area. Returns 0 for an empty tree.

@@ -29,6 +29,11 @@ struct CompileOptions {
     bool keep_mesh = false;               ///< write the optional VERT/INDX sections
     bool allow_parent_uris = false;       ///< glTF: let buffer URIs reach out of the input's folder ('..')
     bool verify = true;                   ///< decode every node and check containment before writing
+    /// Single-level file always (today's file). Off: a glTF input in which
+    /// some mesh is placed by more than one node gives a two-level file
+    /// (format 1.2: MESH/INST/TLAS; issue 19's policy in import.h).
+    /// builder embree, keep_sbvh and keep_mesh imply it (single-level features).
+    bool flatten = false;
 };
 
 /// Everything `--stats-json` reports.
@@ -36,7 +41,16 @@ struct CompileStats {
     uint64_t input_triangles = 0;
     std::map<std::string, uint64_t> dropped_triangles;
     std::map<std::string, uint64_t> skipped_primitives;
-    uint64_t triangles = 0;
+    uint64_t triangles = 0;               ///< stored (distinct) triangles
+    bool two_level = false;               ///< a two-level file was written
+    uint64_t meshes = 0;                  ///< two-level: bottom levels (MESH records)
+    uint64_t instances = 0;               ///< two-level: INST records
+    uint64_t instanced_triangles = 0;     ///< triangles once every instance is expanded (= triangles if single-level)
+    uint64_t top_nodes = 0;               ///< two-level: TLAS nodes
+    uint32_t top_depth = 0;               ///< two-level: TLAS levels
+    /// Two-level: the core's phases per mesh (sbvh, collapse, slots, encode),
+    /// seconds summed over the meshes (CPU seconds; they run in parallel).
+    std::vector<std::pair<std::string, double>> mesh_phase_seconds;
     uint64_t references = 0;
     uint64_t spatial_splits = 0;
     uint64_t binary_nodes = 0;
@@ -64,6 +78,7 @@ using PhaseCallback = std::function<void(const std::string& phase, bool done, do
 /// line naming the file and what is wrong.
 /// `progress` (optional, progress.h) is reset before each phase's start callback to the
 /// units that phase counts (sbvh: triangles, collapse: binary nodes, slots: wide nodes;
+/// two-level files: meshes counts the distinct triangles, assemble/instances/tlas 0;
 /// 0 for import, embree, encode and write, which are not counted) and advanced by the
 /// phase from its worker threads; a counted phase ends with done == total. It is only
 /// ever written: the output file is the same with or without it.

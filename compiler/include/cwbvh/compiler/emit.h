@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <functional>
 #include <string>
 #include <utility>
@@ -84,6 +85,24 @@ Result encode_scene(const EmitInput& in, EmitResult& out);
 /// The file's sections: NODE, TRIS, PMAP, BNDS, BILD and SRCN always, BVH2/BV2L and
 /// VERT/INDX as chosen. Spans into `scene` and `encoded`.
 SceneSections scene_sections(const Scene& scene, const EmitResult& encoded);
+
+/// The two-level sections (format 1.2, issue 19); all empty: a single-level file.
+struct TwoLevelSections {
+    std::span<const MeshRecord> meshes;         ///< MESH
+    std::span<const InstanceRecord> instances;  ///< INST (TLAS leaf order)
+    std::span<const CwbvhNode> tlas;            ///< TLAS
+};
+
+/// format/'s add_scene_sections, then MESH, INST, TLAS (flagged required) when
+/// `two_level` is not empty.
+// TODO(lead): format/'s add_scene_sections takes these spans once tl-fmt is
+// merged (its section order and flags); this is the one place that adds them.
+void add_scene_sections(Writer& writer, const SceneSections& scene, const TwoLevelSections& two_level);
+
+/// Lays out and writes `writer`'s sections atomically to `path`; `bytes` gets
+/// (section name, payload bytes) in file order.
+Result write_with(const Writer& writer, const std::string& path, std::vector<std::pair<std::string, uint64_t>>& bytes,
+                  uint64_t& file_bytes);
 
 /// Writes the file atomically to `path`. `bytes` gets (section name, payload bytes) in file order.
 Result write_scene(const Scene& scene, const EmitResult& encoded, const std::string& path,

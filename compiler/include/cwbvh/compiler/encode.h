@@ -45,6 +45,13 @@ Result encode_cwbvh(const WideBvh& wide, const Scene& scene, EncodedTree& out,
 Result encode_cwbvh_nodes(const WideBvh& wide, EncodedTree& out, float c_node = 1.0f, float c_prim = 0.3f);
 Result encode_cwbvh_triangles(const WideBvh& wide, const Scene& scene, EncodedTree& out);
 
+/// The leaf order of an encoded tree for any primitive kind (triangles, or
+/// the instances of a two-level scene's top level): after encode_cwbvh_nodes,
+/// order[record] = the primitive id (WideBvh::leaf_refs value) that record
+/// `record` of the leaf layout holds (the TRIS order; for a top level the INST
+/// order). Each reference in exactly one record, else an error.
+Result encode_leaf_order(const WideBvh& wide, const EncodedTree& tree, std::vector<uint32_t>& order);
+
 /// BV2L section (binary BVH with leaf ranges, spec 3.6): Aila–Laine 64-byte nodes
 /// over the binary BVH cut at the wide tree's leaves. Every wide leaf is one
 /// binary subtree (the collapse made it from all binary leaves under one node m);

@@ -38,6 +38,12 @@ struct ImportOptions {
 Result import_scene(const std::vector<std::string>& paths, const ImportOptions& options,
                                 Scene& out, std::vector<std::string>& warnings);
 
+/// Two-level import (issue 19's policy): one glTF input in which some mesh is
+/// placed by more than one node gives `instanced` (is_instanced true); any
+/// other input list gives `flat` exactly as import_scene does.
+Result import_scene_instanced(const std::vector<std::string>& paths, const ImportOptions& options, Scene& flat,
+                              InstancedScene& instanced, bool& is_instanced, std::vector<std::string>& warnings);
+
 // ---------------------------------------------------------------------------
 // Stage internals (used by import_scene and by the tests).
 // ---------------------------------------------------------------------------
@@ -64,10 +70,32 @@ struct RawInput {
     uint64_t rejected_by_reader = 0;
 };
 
+/// glTF placements kept as instances (import_gltf with `instanced`).
+struct RawPlacement {
+    uint32_t node = kInvalidIndex;  ///< glTF node (kInvalidIndex: the merged identity placement)
+    uint32_t mesh = 0;              ///< index into RawInstanced::meshes
+    std::array<double, 12> object_to_world{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};  ///< 3x4 row-major
+};
+
+/// A glTF file whose instancing is kept: the meshes placed >= 2 times in
+/// object space (ascending glTF mesh index), then, if any geometry is placed
+/// once, that geometry merged in world space (last, source_mesh kInvalidIndex,
+/// one identity placement).
+struct RawInstanced {
+    std::vector<RawInput> meshes;
+    std::vector<uint32_t> source_mesh;  ///< glTF mesh per entry of `meshes` (kInvalidIndex: merged)
+    std::vector<RawPlacement> placements;  ///< in node walk order, the merged identity placement last
+};
+
 /// Per-format readers. Each returns false and sets `error` (without the file
 /// name prefix; import_scene adds it) on bad input.
+/// import_gltf with `instanced` set: when some glTF mesh of the scene is
+/// placed by more than one node, fills *instanced (out stays empty) and sets
+/// *is_instanced; otherwise the file is read exactly as without it (out filled,
+/// byte-identical downstream) and *is_instanced is false.
 Result import_gltf(const std::string& path, const ImportOptions& options, RawInput& out,
-                   std::vector<std::string>& warnings);
+                   std::vector<std::string>& warnings, RawInstanced* instanced = nullptr,
+                   bool* is_instanced = nullptr);
 Result import_openmesh(const std::string& path, const ImportOptions& options,
                                    RawInput& out,
                                    std::vector<std::string>& warnings);

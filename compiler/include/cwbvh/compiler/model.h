@@ -65,6 +65,41 @@ struct Scene {
     }
 };
 
+/// One placement of a bottom level of a two-level scene (design: issue 19).
+struct Placement {
+    uint32_t mesh = 0;                       ///< index into InstancedScene::meshes
+    uint32_t source_node = kInvalidIndex;    ///< glTF node (kInvalidIndex: the merged identity instance)
+    /// Affine 3x4, row-major, in double (the glTF node's world matrix):
+    /// x_world[r] = m[4r]*x + m[4r+1]*y + m[4r+2]*z + m[4r+3].
+    std::array<double, 12> object_to_world{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+};
+
+/// A two-level scene: distinct meshes (bottom levels) and their placements.
+/// A glTF mesh placed >= 2 times is one bottom level in object space; all
+/// geometry placed once is merged, in world space, into one extra bottom level
+/// (the last one) with one identity placement.
+struct InstancedScene {
+    std::vector<Scene> meshes;             ///< bottom levels, each cleaned on its own (stored ids local)
+    std::vector<uint32_t> source_mesh;     ///< glTF mesh per bottom level (kInvalidIndex: merged)
+    std::vector<Placement> placements;
+    std::vector<std::string> input_names;  ///< SRCN
+    uint64_t input_triangles = 0;          ///< distinct triangles before cleaning (all bottom levels)
+    std::map<std::string, uint64_t> dropped;
+    std::map<std::string, uint64_t> skipped_primitives;
+
+    uint64_t distinct_triangles() const {
+        uint64_t n = 0;
+        for (const Scene& m : meshes) n += m.triangle_count();
+        return n;
+    }
+    /// Triangles once every placement is expanded.
+    uint64_t instanced_triangles() const {
+        uint64_t n = 0;
+        for (const Placement& p : placements) n += meshes[p.mesh].triangle_count();
+        return n;
+    }
+};
+
 /// Binary BVH with exactly one triangle reference per leaf. Node 0 is the
 /// root. Nodes are in depth-first order (left subtree first) so that the
 /// layout is canonical whatever the thread count.

@@ -1,0 +1,504 @@
+// compile_two_level: the bottom levels (one core compile per distinct mesh, in
+// parallel), their concatenation with absolute indices, the instance records
+// and the top level built by the same core over the instances' world boxes.
+#include "cwbvh/compiler/two_level.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cfloat>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <numeric>
+
+#include <tbb/parallel_for.h>
+
+#include "cwbvh/compiler/auction.h"
+#include "cwbvh/compiler/build.h"
+#include "cwbvh/compiler/collapse.h"
+#include "cwbvh/compiler/emit.h"
+#include "cwbvh/compiler/encode.h"
+#include "cwbvh/compiler/import.h"
+#include "cwbvh/compiler/progress.h"
+#include "cwbvh/compiler/quantize.h"
+#include "cwbvh/format/node_decode.h"
+#include "cwbvh/format/tree_depth.h"
+#include "cwbvh/format/writer.h"
+
+namespace cwbvh::compiler {
+namespace {
+
+Result bad(const std::string& what) { return Result::fail(Status::kBadInput, 0, what); }
+
+std::string number(double x) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.6g", x);
+    return buf;
+}
+
+// ---------------------------------------------------------------------------
+// Stand-in for format/'s transform_host.h (tl-fmt, not merged yet): the same
+// arithmetic as its invert_affine / condition_number / transform_box /
+// make_instance, in the same order, so that switching to it leaves the files
+// byte-identical.
+// TODO(lead): once tl-fmt is merged, delete this block and call
+// cwbvh::make_instance and cwbvh::condition_number (transform_host.h) from
+// make_instance_record; this is the compiler's only copy.
+// ---------------------------------------------------------------------------
+constexpr double kFloatMax = 3.4028234663852886e38;  // FLT_MAX
+
+/// Largest float <= x / smallest float >= x (a double beyond float's range converts with UB: handled first).
+float round_down(double x) {
+    if (x > kFloatMax) return float(kFloatMax);
+    if (!(x >= -kFloatMax)) return -__builtin_huge_valf();
+    float f = static_cast<float>(x);
+    if (double(f) > x) f = std::nextafter(f, -__builtin_huge_valf());
+    return f;
+}
+float round_up(double x) {
+    if (x < -kFloatMax) return -float(kFloatMax);
+    if (!(x <= kFloatMax)) return __builtin_huge_valf();
+    float f = static_cast<float>(x);
+    if (double(f) < x) f = std::nextafter(f, __builtin_huge_valf());
+    return f;
+}
+
+bool finite_3x4(const float m[3][4]) {
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c)
+            if (!std::isfinite(m[r][c])) return false;
+    return true;
+}
+
+/// The double inverse: X_lin = adj(A) / det, X[r][3] = -sum_c X_lin[r][c] * t[c].
+bool stand_in_invert(const float m[3][4], double inv[3][4]) {
+    if (!finite_3x4(m)) return false;
+    const double c0 = double(m[1][1]) * m[2][2] - double(m[1][2]) * m[2][1];
+    const double c1 = double(m[1][2]) * m[2][0] - double(m[1][0]) * m[2][2];
+    const double c2 = double(m[1][0]) * m[2][1] - double(m[1][1]) * m[2][0];
+    const double det = double(m[0][0]) * c0 + double(m[0][1]) * c1 + double(m[0][2]) * c2;
+    if (det == 0.0 || !std::isfinite(det)) return false;
+    auto a = [&](int r, int c) { return double(m[r][c]); };
+    const double adj[3][3] = {
+        {a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1), a(0, 2) * a(2, 1) - a(0, 1) * a(2, 2),
+         a(0, 1) * a(1, 2) - a(0, 2) * a(1, 1)},
+        {a(1, 2) * a(2, 0) - a(1, 0) * a(2, 2), a(0, 0) * a(2, 2) - a(0, 2) * a(2, 0),
+         a(0, 2) * a(1, 0) - a(0, 0) * a(1, 2)},
+        {a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0), a(0, 1) * a(2, 0) - a(0, 0) * a(2, 1),
+         a(0, 0) * a(1, 1) - a(0, 1) * a(1, 0)},
+    };
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) inv[r][c] = adj[r][c] / det;
+        inv[r][3] = -(inv[r][0] * a(0, 3) + inv[r][1] * a(1, 3) + inv[r][2] * a(2, 3));
+    }
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c)
+            if (!std::isfinite(inv[r][c])) return false;
+    return true;
+}
+
+/// ||A||inf * ||A^-1||inf of the linear part; +inf if singular.
+double stand_in_condition(const float m[3][4]) {
+    double inv[3][4];
+    if (!stand_in_invert(m, inv)) return __builtin_huge_val();
+    double n = 0, ni = 0;
+    for (int r = 0; r < 3; ++r) {
+        n = std::max(n, std::fabs(double(m[r][0])) + std::fabs(double(m[r][1])) + std::fabs(double(m[r][2])));
+        ni = std::max(ni, std::fabs(inv[r][0]) + std::fabs(inv[r][1]) + std::fabs(inv[r][2]));
+    }
+    const double k = n * ni;
+    return std::isfinite(k) ? k : __builtin_huge_val();
+}
+
+/// The instance record with the tight conservative world box (the 8 corners
+/// in double, widened by 2^-50 of their magnitude for the double rounding,
+/// rounded outward to float). Message without a prefix.
+Result stand_in_make_instance(const float m[3][4], const MeshRecord& mesh, uint32_t source_node,
+                              InstanceRecord& inst) {
+    inst = InstanceRecord{};
+    double x[3][4];
+    if (!finite_3x4(m)) return bad("instance transform: not finite");
+    if (const double k = stand_in_condition(m); !(k <= kMaxInstanceCondition) || !stand_in_invert(m, x))
+        return bad("instance transform: condition number " + number(k) + " (singular or above the limit 2^20)");
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) {
+            if (!(std::fabs(x[r][c]) <= kFloatMax)) return bad("instance transform: the inverse overflows float");
+            inst.object_to_world[r][c] = m[r][c];
+            inst.world_to_object[r][c] = static_cast<float>(x[r][c]);  // RN
+        }
+    inst.source_node = source_node;
+    double wlo[3] = {__builtin_huge_val(), __builtin_huge_val(), __builtin_huge_val()};
+    double whi[3] = {-__builtin_huge_val(), -__builtin_huge_val(), -__builtin_huge_val()};
+    for (int corner = 0; corner < 8; ++corner) {
+        const double p[3] = {(corner & 1) ? mesh.hi[0] : mesh.lo[0], (corner & 2) ? mesh.hi[1] : mesh.lo[1],
+                             (corner & 4) ? mesh.hi[2] : mesh.lo[2]};
+        for (int r = 0; r < 3; ++r) {
+            const double t0 = double(m[r][0]) * p[0], t1 = double(m[r][1]) * p[1], t2 = double(m[r][2]) * p[2];
+            const double t3 = m[r][3];
+            const double v = ((t0 + t1) + t2) + t3;
+            const double err = std::ldexp(std::fabs(t0) + std::fabs(t1) + std::fabs(t2) + std::fabs(t3), -50);
+            wlo[r] = std::min(wlo[r], v - err);
+            whi[r] = std::max(whi[r], v + err);
+        }
+    }
+    for (int r = 0; r < 3; ++r) {
+        inst.world_lo[r] = round_down(wlo[r]);
+        inst.world_hi[r] = round_up(whi[r]);
+        if (!std::isfinite(inst.world_lo[r]) || !std::isfinite(inst.world_hi[r]))
+            return bad("instance transform: the world box of the mesh overflows float");
+    }
+    return Result::success();
+}
+// --- end of the stand-in ----------------------------------------------------
+
+}  // namespace
+
+Result make_instance_record(const Placement& p, const MeshRecord& mesh, InstanceRecord& out) {
+    out = InstanceRecord{};
+    float m[3][4];
+    for (int i = 0; i < 12; ++i) {
+        // RN to float: the stored matrix; the inverse, the condition number and
+        // the world box are computed from it. (Checked first: a double beyond
+        // float's range converts with UB.)
+        const double x = p.object_to_world[size_t(i)];
+        if (!(std::fabs(x) <= kFloatMax)) return bad("transform entry " + number(x) + " beyond float range");
+        m[i / 4][i % 4] = float(x);
+    }
+    if (Result r = stand_in_make_instance(m, mesh, p.source_node, out); !r.ok()) return r;
+    // The traversal moves a ray into object space with the float
+    // world_to_object (transform.h: rounded entries, three rounded fmas). For
+    // a world point x that is an object-space error of about
+    // 4 * 2^-24 * ||W^-1||inf * (||x||inf + ||t||inf) (t: the translation;
+    // W^-1's translation column is W^-1 t), i.e. up to
+    // cond * 2^-22 * (||x|| + ||t||) in world space: points that far outside
+    // the exact image of the mesh box can land in it, and the TLAS must not
+    // cull them (must round outward). The world box is widened on every axis
+    // by cond * 2^-21 * (M + ||t||), M = the largest world coordinate of the
+    // box (twice the bound). A world-point walk over 3,000 random transforms
+    // found this necessary (the tight box alone missed such points in 10% of
+    // them) and sufficient (tests: WorldBoxHoldsWhatTheFloatInverseMaps...).
+    // (A ray's origin far from the instance adds error the box cannot bound.)
+    const double cond = stand_in_condition(m);
+    double box_mag = 0, t_mag = 0;
+    for (int r = 0; r < 3; ++r) {
+        double row = std::fabs(double(m[r][3]));
+        for (int c = 0; c < 3; ++c)
+            row += std::fabs(double(m[r][c])) * std::max(std::fabs(double(mesh.lo[c])), std::fabs(double(mesh.hi[c])));
+        box_mag = std::max(box_mag, row);
+        t_mag = std::max(t_mag, std::fabs(double(m[r][3])));
+    }
+    const double pad = cond * 0x1p-21 * (box_mag + t_mag);
+    for (int r = 0; r < 3; ++r) {
+        const double lo = double(out.world_lo[r]) - pad, hi = double(out.world_hi[r]) + pad;
+        // The quantizer's bound (import.h): beyond it no node can encode the box.
+        if (!(std::fabs(lo) <= double(kMaxCoordinate)) || !(std::fabs(hi) <= double(kMaxCoordinate)))
+            return bad("instance world box beyond +-2^125 (translation or scale too large)");
+        out.world_lo[r] = round_down(lo);
+        out.world_hi[r] = round_up(hi);
+    }
+    return Result::success();
+}
+
+namespace {
+
+/// The top level over the instances' world boxes: binary object-split SAH,
+/// the same collapse, slots and quantization as a bottom level; INST reordered
+/// into the leaf order. `verify`: every decoded slot box contains its exact
+/// box and every leaf slot every instance world box it holds.
+Result build_top_level(std::vector<InstanceRecord>& instances, const CoreOptions& options, std::vector<CwbvhNode>& tlas,
+                       uint32_t& depth) {
+    std::vector<Aabb> boxes(instances.size());
+    for (size_t i = 0; i < instances.size(); ++i)
+        for (int a = 0; a < 3; ++a) {
+            boxes[i].lo[a] = instances[i].world_lo[a];
+            boxes[i].hi[a] = instances[i].world_hi[a];
+        }
+    SbvhConfig sbvh = options.sbvh;
+    sbvh.threads = 0;  // the caller's arena
+    BinaryBvh binary;
+    if (Result r = build_boxes(boxes, sbvh, binary); !r.ok()) return r;
+    CollapseConfig collapse = options.collapse;
+    collapse.binary_leaf_refs = false;
+    WideBvh wide;
+    if (Result r = collapse_wide(binary, collapse, wide); !r.ok()) return r;
+    assign_slots(wide);
+    EncodedTree tree;
+    if (Result r = encode_cwbvh_nodes(wide, tree, collapse.cost_node, collapse.cost_prim); !r.ok()) return r;
+    if (options.emit.verify) {
+        if (Result r = verify_encoded(tree, wide, Scene{}, VerifyPart::kBoxes); !r.ok())
+            return Result::fail(Status::kInternal, 0, "internal error: top level failed verification: " + r.message);
+    }
+    std::vector<uint32_t> order;
+    if (Result r = encode_leaf_order(wide, tree, order); !r.ok()) return r;
+    if (order.size() != instances.size())
+        return Result::fail(Status::kInternal, 0, "internal error: top level does not hold every instance once");
+    std::vector<InstanceRecord> sorted(instances.size());
+    for (size_t k = 0; k < order.size(); ++k) sorted[k] = instances[order[k]];
+    instances.swap(sorted);
+    if (options.emit.verify) {
+        // TLAS containment against the records as written: each leaf slot's
+        // decoded box holds the world boxes of the instances it indexes.
+        for (size_t i = 0; i < tree.nodes.size(); ++i) {
+            const CwbvhNode& n = tree.nodes[i];
+            for (int s = 0; s < kWidth; ++s) {
+                if (!meta_is_leaf(n.meta[s])) continue;
+                const Aabb box = decode_child_box(n, s);
+                const uint32_t first = n.tri_base + uint32_t(meta_leaf_offset(n.meta[s]));
+                for (int k = 0; k < meta_leaf_count(n.meta[s]); ++k) {
+                    const InstanceRecord& inst = instances[first + uint32_t(k)];
+                    for (int a = 0; a < 3; ++a)
+                        if (!(box.lo[a] <= inst.world_lo[a] && box.hi[a] >= inst.world_hi[a]))
+                            return Result::fail(Status::kInternal, 0,
+                                                "internal error: top-level node " + std::to_string(i) + " slot " +
+                                                    std::to_string(s) + " does not contain instance " +
+                                                    std::to_string(first + uint32_t(k)));
+                }
+            }
+        }
+    }
+    depth = wide_tree_depth(tree.nodes);
+    if (depth > kMaxWideDepth)
+        return bad("the top level is " + std::to_string(depth) + " levels deep; the format allows " +
+                   std::to_string(kMaxWideDepth));
+    tlas = std::move(tree.nodes);
+    return Result::success();
+}
+
+}  // namespace
+
+Result compile_two_level(const InstancedScene& scene, const CoreOptions& options, const std::string& file,
+                         TwoLevelResult& out, const PhaseRunner& run, Progress* progress) {
+    out = TwoLevelResult{};
+    const size_t meshes = scene.meshes.size();
+    if (meshes == 0 || scene.placements.empty())
+        return Result::fail(Status::kInvalidArgument, 0, "compile_two_level: no meshes or no placements");
+    auto run_phase = [&](const char* name, uint64_t units, const std::function<bool()>& body) {
+        return run ? run(name, units, body) : body();
+    };
+
+    // 1. Bottom levels: each mesh through the core, largest first (the order
+    // of the work only; each result depends on its mesh alone).
+    std::vector<EmitResult> emitted(meshes);
+    std::vector<Result> results(meshes);
+    std::vector<std::map<std::string, double>> seconds(meshes);
+    std::vector<uint64_t> splits(meshes, 0);
+    std::vector<size_t> order(meshes);
+    std::iota(order.begin(), order.end(), size_t(0));
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+        return scene.meshes[a].triangle_count() > scene.meshes[b].triangle_count();
+    });
+    CoreOptions core = options;
+    core.sbvh.threads = 0;  // the caller's arena (compile()'s --threads)
+    run_phase("meshes", scene.distinct_triangles(), [&] {
+        tbb::parallel_for(size_t(0), meshes, [&](size_t k) {
+            const size_t m = order[k];
+            auto& time = seconds[m];
+            const PhaseRunner timed = [&time](const std::string& name, uint64_t, const std::function<bool()>& body) {
+                const auto start = std::chrono::steady_clock::now();
+                const bool ok = body();
+                time[name] += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+                return ok;
+            };
+            const Scene& s = scene.meshes[m];
+            BinaryBvh binary;
+            Result r;
+            timed("sbvh", 0, [&] {
+                r = build_sbvh(s, core.sbvh, binary);
+                return r.ok();
+            });
+            if (r.ok()) {
+                splits[m] = binary.spatial_splits;
+                r = compile_binary(s, binary, core, emitted[m], timed);
+            }
+            results[m] = r;
+            progress_add(progress, s.triangle_count());  // a mesh done: its triangles
+        });
+        return true;
+    });
+    for (size_t m = 0; m < meshes; ++m) {
+        if (!results[m].ok()) {
+            Result r = results[m];
+            const uint32_t src = scene.source_mesh[m];
+            r.message = file + ": " +
+                        (src == kInvalidIndex ? std::string("the merged geometry placed once")
+                                              : "glTF mesh " + std::to_string(src)) +
+                        ": " + r.message;
+            return r;
+        }
+    }
+    std::map<std::string, double> phase_sum;
+    for (size_t m = 0; m < meshes; ++m) {
+        out.spatial_splits += splits[m];
+        for (const auto& [name, t] : seconds[m]) phase_sum[name] += t;
+    }
+    for (const char* name : {"sbvh", "collapse", "slots", "encode"})
+        if (phase_sum.count(name)) out.mesh_phase_seconds.emplace_back(name, phase_sum[name]);
+
+    // 2. Concatenation with absolute indices; MESH records.
+    Result r;
+    run_phase("assemble", 0, [&] {
+        size_t nodes = 0, tris = 0, ranges = 0;
+        for (const EmitResult& e : emitted) {
+            nodes += e.tree.nodes.size();
+            tris += e.tree.triangles.size();
+            ranges += e.source_ranges.size();
+        }
+        if (nodes >= kInvalidIndex || tris >= kInvalidIndex || scene.distinct_triangles() >= kInvalidIndex) {
+            r = bad(file + ": the distinct meshes exceed 32-bit NODE/TRIS indices");
+            return false;
+        }
+        out.nodes.reserve(nodes);
+        out.triangles.reserve(tris);
+        out.source_ranges.reserve(ranges);
+        double sah_binary = 0, sah_wide = 0, children = 0;
+        uint64_t prim_first = 0;
+        for (size_t m = 0; m < meshes; ++m) {
+            EmitResult& e = emitted[m];
+            MeshRecord mr{};
+            mr.node_first = uint32_t(out.nodes.size());
+            mr.node_count = uint32_t(e.tree.nodes.size());
+            mr.tri_first = uint32_t(out.triangles.size());
+            mr.tri_count = uint32_t(e.tree.triangles.size());
+            mr.prim_first = uint32_t(prim_first);
+            mr.prim_count = uint32_t(scene.meshes[m].triangle_count());
+            for (int a = 0; a < 3; ++a) {
+                mr.lo[a] = e.bounds.lo[a];
+                mr.hi[a] = e.bounds.hi[a];
+            }
+            mr.source_mesh = scene.source_mesh[m];
+            for (CwbvhNode n : e.tree.nodes) {
+                // Unused bases stay 0 (as in a single-level file).
+                if (n.imask != 0) n.child_base += mr.node_first;
+                bool leaf = false;
+                for (int s = 0; s < kWidth; ++s) leaf = leaf || meta_is_leaf(n.meta[s]);
+                if (leaf) n.tri_base += mr.tri_first;
+                out.nodes.push_back(n);
+            }
+            for (TriangleRecord t : e.tree.triangles) {
+                t.prim += mr.prim_first;
+                out.triangles.push_back(t);
+            }
+            for (SourceRange sr : e.source_ranges) {
+                sr.first += mr.prim_first;
+                out.source_ranges.push_back(sr);
+            }
+            const double w = double(mr.prim_count);
+            sah_binary += e.build_info.sah_binary * w;
+            sah_wide += e.sah_wide * w;
+            children += e.avg_children * double(mr.node_count);
+            out.references += e.build_info.references;
+            out.binary_nodes += e.build_info.binary_nodes;
+            out.wide_depth = std::max(out.wide_depth, e.wide_depth);
+            out.max_leaf_triangles = std::max(out.max_leaf_triangles, e.max_leaf_triangles);
+            prim_first += mr.prim_count;
+            out.meshes.push_back(mr);
+            e = EmitResult{};  // copied: free it
+        }
+        out.sah_binary = sah_binary / double(prim_first);
+        out.sah_wide = sah_wide / double(prim_first);
+        out.avg_children = children / double(out.nodes.size());
+        return true;
+    });
+    if (!r.ok()) return r;
+
+    // 3. Instance records (errors name the glTF node), then the top level.
+    run_phase("instances", 0, [&] {
+        out.instances.resize(scene.placements.size());
+        for (size_t i = 0; i < scene.placements.size(); ++i) {
+            const Placement& p = scene.placements[i];
+            if (p.mesh >= meshes) {
+                r = Result::fail(Status::kInvalidArgument, 0, "compile_two_level: placement of a mesh out of range");
+                return false;
+            }
+            if (Result e = make_instance_record(p, out.meshes[p.mesh], out.instances[i]); !e.ok()) {
+                r = bad(file + ": " +
+                        (p.source_node == kInvalidIndex ? std::string("identity instance")
+                                                        : "glTF node " + std::to_string(p.source_node)) +
+                        ": " + e.message);
+                return false;
+            }
+            out.instances[i].mesh = p.mesh;
+        }
+        return true;
+    });
+    if (!r.ok()) return r;
+    run_phase("tlas", 0, [&] {
+        r = build_top_level(out.instances, options, out.tlas, out.tlas_depth);
+        if (!r.ok()) r.message = file + ": " + r.message;
+        return r.ok();
+    });
+    if (!r.ok()) return r;
+
+    // 4. BNDS, BILD, SRCN.
+    Aabb world;
+    for (const InstanceRecord& inst : out.instances) {
+        Aabb b;
+        for (int a = 0; a < 3; ++a) {
+            b.lo[a] = inst.world_lo[a];
+            b.hi[a] = inst.world_hi[a];
+        }
+        world.grow(b);
+    }
+    for (int a = 0; a < 3; ++a) {
+        out.bounds.lo[a] = world.lo[a];
+        out.bounds.hi[a] = world.hi[a];
+    }
+    BuildInfo& info = out.build_info;
+    info.builder = options.emit.builder;
+    info.collapse = options.collapse.kind;
+    info.split_alpha = options.sbvh.split_alpha;
+    info.cost_node = options.collapse.cost_node;
+    info.cost_prim = options.collapse.cost_prim;
+    info.max_leaf_triangles = uint32_t(options.collapse.max_leaf);
+    info.input_triangles = scene.input_triangles;
+    auto count = [](const std::map<std::string, uint64_t>& m, const char* key) {
+        const auto it = m.find(key);
+        return it == m.end() ? uint64_t(0) : it->second;
+    };
+    info.dropped_nonfinite = count(scene.dropped, "nonfinite");
+    info.dropped_degenerate = count(scene.dropped, "degenerate");
+    for (const auto& [kind, n] : scene.skipped_primitives) info.skipped_primitives += n;
+    info.triangles = scene.distinct_triangles();
+    info.references = out.references;
+    info.binary_nodes = out.binary_nodes;
+    info.wide_nodes = out.nodes.size();
+    info.sah_binary = out.sah_binary;
+    info.sah_wide = out.sah_wide;
+    info.avg_children = out.avg_children;
+    for (const auto& name : scene.input_names) {
+        out.source_names.insert(out.source_names.end(), name.begin(), name.end());
+        out.source_names.push_back(0);
+    }
+    return Result::success();
+}
+
+namespace {
+
+void add_sections(Writer& writer, const TwoLevelResult& t) {
+    SceneSections s;
+    s.nodes = t.nodes;
+    s.triangles = t.triangles;
+    s.source_ranges = t.source_ranges;
+    s.bounds = &t.bounds;
+    s.build_info = &t.build_info;
+    s.source_names = t.source_names;
+    add_scene_sections(writer, s, TwoLevelSections{t.meshes, t.instances, t.tlas});
+}
+
+}  // namespace
+
+Result write_two_level(const TwoLevelResult& t, const std::string& path,
+                       std::vector<std::pair<std::string, uint64_t>>& bytes, uint64_t& file_bytes) {
+    Writer writer;
+    add_sections(writer, t);
+    return write_with(writer, path, bytes, file_bytes);
+}
+
+Result two_level_bytes(const TwoLevelResult& t, std::vector<uint8_t>& out) {
+    Writer writer;
+    add_sections(writer, t);
+    if (Result r = writer.to_bytes(out); !r.ok()) return Result::fail(r.status, r.rule, r.describe());
+    return Result::success();
+}
+
+}  // namespace cwbvh::compiler
