@@ -8,6 +8,7 @@
 
 #include "cwbvh/kernels/traverse.h"
 #include "cwbvh/kernels/traverse_bvh2.h"
+#include "cwbvh/kernels/traverse_two_level.h"
 
 namespace cwbvh {
 namespace {
@@ -58,19 +59,17 @@ CpuTraceStats dispatch(const NodeT* nodes, uint32_t nc, const TriangleRecord* tr
                : trace_range<TriangleTest::kFast, HitMode::kClosest, kBvh2>(nodes, nc, tris, tc, rays, hits, b, e, o);
 }
 
-template <bool kBvh2, class NodeT>
-CpuTraceStats trace_all(const NodeT* nodes, size_t node_count, const TriangleRecord* tris,
-                        size_t tri_count, const Ray* rays, Hit* hits, size_t ray_count,
-                        const CpuTraceOptions& o) {
+/// Runs range(begin, end) -> CpuTraceStats over [0, ray_count) on o.threads threads.
+template <class Range>
+CpuTraceStats run_threads(size_t ray_count, const CpuTraceOptions& o, const Range& range) {
     const auto t0 = std::chrono::steady_clock::now();
-    const uint32_t nc = clamp_count(node_count), tc = clamp_count(tri_count);
     unsigned threads = o.threads ? o.threads : std::max(1u, std::thread::hardware_concurrency());
     // Chunks of at least 4096 rays, so tiny batches stay on the calling thread.
     const size_t max_threads = std::max<size_t>(1, ray_count / 4096);
     threads = unsigned(std::min<size_t>(threads, max_threads));
     CpuTraceStats total;
     if (threads <= 1) {
-        total = dispatch<kBvh2>(nodes, nc, tris, tc, rays, hits, 0, ray_count, o);
+        total = range(size_t(0), ray_count);
     } else {
         // Interleaved blocks of 1024 rays balance incoherent workloads; each ray is
         // traced by exactly one thread, so results are thread-count independent.
@@ -81,8 +80,7 @@ CpuTraceStats trace_all(const NodeT* nodes, size_t node_count, const TriangleRec
         for (unsigned t = 0; t < threads; ++t) {
             pool.emplace_back([&, t] {
                 for (size_t b = size_t(t) * kBlock; b < ray_count; b += size_t(threads) * kBlock) {
-                    const CpuTraceStats s =
-                        dispatch<kBvh2>(nodes, nc, tris, tc, rays, hits, b, std::min(ray_count, b + kBlock), o);
+                    const CpuTraceStats s = range(b, std::min(ray_count, b + kBlock));
                     part[t] += s;
                 }
             });
@@ -92,6 +90,33 @@ CpuTraceStats trace_all(const NodeT* nodes, size_t node_count, const TriangleRec
     }
     total.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return total;
+}
+
+template <bool kBvh2, class NodeT>
+CpuTraceStats trace_all(const NodeT* nodes, size_t node_count, const TriangleRecord* tris,
+                        size_t tri_count, const Ray* rays, Hit* hits, size_t ray_count,
+                        const CpuTraceOptions& o) {
+    const uint32_t nc = clamp_count(node_count), tc = clamp_count(tri_count);
+    return run_threads(ray_count, o, [&](size_t b, size_t e) {
+        return dispatch<kBvh2>(nodes, nc, tris, tc, rays, hits, b, e, o);
+    });
+}
+
+template <TriangleTest kTest, HitMode kMode>
+CpuTraceStats two_level_range(const TwoLevelScene& scene, const Ray* rays, Hit* hits, uint32_t* instances,
+                              size_t begin, size_t end, const CpuTraceOptions& o) {
+    CpuTraceStats s;
+    for (size_t i = begin; i < end; ++i) {
+        TraceCounters c{0, 0};
+        LocalStack<kCpuStackSize> stack;
+        uint32_t inst = kInvalidIndex;
+        const TraceStatus st = traverse_two_level<kTest, kMode>(scene, rays[i], hits[i], inst, stack, &c);
+        if (instances) instances[i] = inst;
+        if (o.counters) o.counters[i] = c;
+        if (o.statuses) o.statuses[i] = st;
+        accumulate(s, st, hits[i], c);
+    }
+    return s;
 }
 
 }  // namespace
@@ -106,6 +131,19 @@ CpuTraceStats trace_bvh2_cpu(const Bvh2Node* nodes, size_t node_count, const Tri
                              size_t tri_count, const Ray* rays, Hit* hits, size_t ray_count,
                              const CpuTraceOptions& options) {
     return trace_all<true>(nodes, node_count, tris, tri_count, rays, hits, ray_count, options);
+}
+
+CpuTraceStats trace_two_level_cpu(const TwoLevelScene& scene, const Ray* rays, Hit* hits, uint32_t* instances,
+                                  size_t ray_count, const CpuTraceOptions& o) {
+    return run_threads(ray_count, o, [&](size_t b, size_t e) {
+        const bool any = o.mode == HitMode::kAny;
+        if (o.test == TriangleTest::kWatertight) {
+            return any ? two_level_range<TriangleTest::kWatertight, HitMode::kAny>(scene, rays, hits, instances, b, e, o)
+                       : two_level_range<TriangleTest::kWatertight, HitMode::kClosest>(scene, rays, hits, instances, b, e, o);
+        }
+        return any ? two_level_range<TriangleTest::kFast, HitMode::kAny>(scene, rays, hits, instances, b, e, o)
+                   : two_level_range<TriangleTest::kFast, HitMode::kClosest>(scene, rays, hits, instances, b, e, o);
+    });
 }
 
 }  // namespace cwbvh

@@ -80,19 +80,50 @@ T* alloc_and_copy(std::span<const T> src, Stager* stager, uint64_t& bytes) {
 
 }  // namespace
 
+TwoLevelSections two_level_sections(const File& file) {
+    TwoLevelSections t;
+    if (!file.is_two_level() || file.top_nodes().empty()) return t;  // or kMaskTwoLevel not selected
+    t.top_nodes = file.top_nodes().data();
+    t.top_node_count = file.top_nodes().size();
+    t.instances = file.instances().data();
+    t.instance_count = file.instances().size();
+    t.meshes = file.meshes().data();
+    t.mesh_count = file.meshes().size();
+    return t;
+}
+
 Expected<DeviceScene> DeviceScene::upload(const File& file, const UploadOptions& options) {
     const std::span<const Bvh2Node> bvh2 = options.bvh2 ? file.bvh2() : std::span<const Bvh2Node>{};
     return upload(file.nodes().data(), file.nodes().size(), file.triangles().data(), file.triangles().size(),
-                  bvh2.data(), bvh2.size(), options);
+                  bvh2.data(), bvh2.size(), two_level_sections(file), options);
 }
 
 Expected<DeviceScene> DeviceScene::upload(const CwbvhNode* node_ptr, size_t node_count,
                                           const TriangleRecord* tri_ptr, size_t tri_count,
                                           const Bvh2Node* bvh2_ptr, size_t bvh2_count, const UploadOptions& options) {
+    return upload(node_ptr, node_count, tri_ptr, tri_count, bvh2_ptr, bvh2_count, TwoLevelSections{}, options);
+}
+
+Expected<DeviceScene> DeviceScene::upload(const CwbvhNode* node_ptr, size_t node_count,
+                                          const TriangleRecord* tri_ptr, size_t tri_count,
+                                          const Bvh2Node* bvh2_ptr, size_t bvh2_count,
+                                          const TwoLevelSections& two_level, const UploadOptions& options) {
     const std::span<const CwbvhNode> nodes(node_ptr, node_ptr ? node_count : 0);
     const std::span<const TriangleRecord> triangles(tri_ptr, tri_ptr ? tri_count : 0);
     const std::span<const Bvh2Node> bvh2(bvh2_ptr, bvh2_ptr ? bvh2_count : 0);
+    const std::span<const CwbvhNode> top(two_level.top_nodes, two_level.top_nodes ? two_level.top_node_count : 0);
+    const std::span<const InstanceRecord> inst(two_level.instances,
+                                               two_level.instances ? two_level.instance_count : 0);
+    const std::span<const MeshRecord> mesh(two_level.meshes, two_level.meshes ? two_level.mesh_count : 0);
     constexpr size_t kMaxCount = std::numeric_limits<uint32_t>::max();
+    if (!top.empty() && (inst.empty() || mesh.empty())) {
+        return Result::fail(Status::kInvalidArgument, 0,
+                            "device upload: a two-level scene needs TLAS, INST and MESH together");
+    }
+    if (top.size() > kMaxCount || inst.size() > kMaxCount || mesh.size() > kMaxCount) {
+        return Result::fail(Status::kInvalidArgument, 0,
+                            "device upload: more than 2^32-1 top-level nodes, instances or meshes");
+    }
     if (nodes.empty()) {
         return Result::fail(Status::kInvalidArgument, 0,
                             "device upload: the scene has no NODE section (not opened, or not selected)");
@@ -109,7 +140,9 @@ Expected<DeviceScene> DeviceScene::upload(const CwbvhNode* node_ptr, size_t node
         uint64_t bytes = 0;
         std::optional<Stager> stager;
         if (options.method == UploadMethod::kPinnedStaging &&
-            nodes.size_bytes() + triangles.size_bytes() + bvh2.size_bytes() >= kStagingMinBytes) {
+            nodes.size_bytes() + triangles.size_bytes() + bvh2.size_bytes() + top.size_bytes() + inst.size_bytes() +
+                    mesh.size_bytes() >=
+                kStagingMinBytes) {
             stager.emplace();
         }
         Stager* s = stager ? &*stager : nullptr;
@@ -120,6 +153,12 @@ Expected<DeviceScene> DeviceScene::upload(const CwbvhNode* node_ptr, size_t node
         scene.tri_count_ = uint32_t(triangles.size());
         scene.bvh2_ = alloc_and_copy(bvh2, s, bytes);
         scene.bvh2_count_ = uint32_t(bvh2.size());
+        scene.top_nodes_ = alloc_and_copy(top, s, bytes);
+        scene.top_node_count_ = uint32_t(top.size());
+        scene.instances_ = alloc_and_copy(inst, s, bytes);
+        scene.instance_count_ = uint32_t(inst.size());
+        scene.meshes_ = alloc_and_copy(mesh, s, bytes);
+        scene.mesh_count_ = uint32_t(mesh.size());
         for (const Bvh2Node& n : bvh2)
             if (n.leaf_count[0] != 0 || n.leaf_count[1] != 0) {
                 scene.bvh2_leaf_ranges_ = true;
@@ -142,9 +181,15 @@ DeviceScene::DeviceScene(DeviceScene&& o) noexcept
     : nodes_(std::exchange(o.nodes_, nullptr)),
       tris_(std::exchange(o.tris_, nullptr)),
       bvh2_(std::exchange(o.bvh2_, nullptr)),
+      top_nodes_(std::exchange(o.top_nodes_, nullptr)),
+      instances_(std::exchange(o.instances_, nullptr)),
+      meshes_(std::exchange(o.meshes_, nullptr)),
       node_count_(std::exchange(o.node_count_, 0)),
       tri_count_(std::exchange(o.tri_count_, 0)),
       bvh2_count_(std::exchange(o.bvh2_count_, 0)),
+      top_node_count_(std::exchange(o.top_node_count_, 0)),
+      instance_count_(std::exchange(o.instance_count_, 0)),
+      mesh_count_(std::exchange(o.mesh_count_, 0)),
       bvh2_leaf_ranges_(std::exchange(o.bvh2_leaf_ranges_, false)),
       device_(std::exchange(o.device_, -1)),
       node_scale_(std::exchange(o.node_scale_, NodeScale{})),
@@ -159,6 +204,12 @@ DeviceScene& DeviceScene::operator=(DeviceScene&& o) noexcept {
         node_count_ = std::exchange(o.node_count_, 0);
         tri_count_ = std::exchange(o.tri_count_, 0);
         bvh2_count_ = std::exchange(o.bvh2_count_, 0);
+        top_nodes_ = std::exchange(o.top_nodes_, nullptr);
+        instances_ = std::exchange(o.instances_, nullptr);
+        meshes_ = std::exchange(o.meshes_, nullptr);
+        top_node_count_ = std::exchange(o.top_node_count_, 0);
+        instance_count_ = std::exchange(o.instance_count_, 0);
+        mesh_count_ = std::exchange(o.mesh_count_, 0);
         bvh2_leaf_ranges_ = std::exchange(o.bvh2_leaf_ranges_, false);
         device_ = std::exchange(o.device_, -1);
         node_scale_ = std::exchange(o.node_scale_, NodeScale{});
@@ -170,18 +221,25 @@ DeviceScene& DeviceScene::operator=(DeviceScene&& o) noexcept {
 DeviceScene::~DeviceScene() { release(); }
 
 void DeviceScene::release() noexcept {
-    if (!nodes_ && !tris_ && !bvh2_) return;
+    if (!nodes_ && !tris_ && !bvh2_ && !top_nodes_ && !instances_ && !meshes_) return;
     int current = -1;
     CWBVH_CUDA_WARN(cudaGetDevice(&current));
     if (device_ >= 0 && current != device_) CWBVH_CUDA_WARN(cudaSetDevice(device_));
     if (nodes_) CWBVH_CUDA_WARN(cudaFree(nodes_));
     if (tris_) CWBVH_CUDA_WARN(cudaFree(tris_));
     if (bvh2_) CWBVH_CUDA_WARN(cudaFree(bvh2_));
+    if (top_nodes_) CWBVH_CUDA_WARN(cudaFree(top_nodes_));
+    if (instances_) CWBVH_CUDA_WARN(cudaFree(instances_));
+    if (meshes_) CWBVH_CUDA_WARN(cudaFree(meshes_));
     if (device_ >= 0 && current >= 0 && current != device_) CWBVH_CUDA_WARN(cudaSetDevice(current));
     nodes_ = nullptr;
     tris_ = nullptr;
     bvh2_ = nullptr;
+    top_nodes_ = nullptr;
+    instances_ = nullptr;
+    meshes_ = nullptr;
     node_count_ = tri_count_ = bvh2_count_ = 0;
+    top_node_count_ = instance_count_ = mesh_count_ = 0;
     bvh2_leaf_ranges_ = false;
     node_scale_ = NodeScale{};
 }

@@ -80,6 +80,11 @@ bool gpu_available(std::string& why) { return gpu_status(why) == GpuStatus::kRea
 
 Expected<GpuTraceResult> trace_on_gpu(const File& file, const Ray* rays, Hit* hits, size_t n,
                                       const GpuTraceOptions& options) {
+    return trace_on_gpu(file, rays, hits, nullptr, n, options);
+}
+
+Expected<GpuTraceResult> trace_on_gpu(const File& file, const Ray* rays, Hit* hits, uint32_t* instances, size_t n,
+                                      const GpuTraceOptions& options) {
     GpuTraceResult r;
     r.rays = n;
     std::string why;
@@ -97,15 +102,23 @@ Expected<GpuTraceResult> trace_on_gpu(const File& file, const Ray* rays, Hit* hi
         Expected<DeviceScene> scene = DeviceScene::upload(file, up);
         if (!scene.ok()) return scene.error();
         r.scene_upload_ms = scene->upload_stats().seconds * 1e3;
+        const bool two_level = scene->has_two_level();
+        if (two_level && options.kernel == GpuKernel::kBvh2) {
+            return Result::fail(Status::kInvalidArgument, 0,
+                                file.path() + ": a two-level scene: the BVH2 baseline kernel traces single-level files "
+                                              "only (compile with cwbvhc --flatten)");
+        }
         if (options.kernel == GpuKernel::kBvh2 && !scene->has_bvh2()) {
             return Result::fail(Status::kInvalidArgument, 0,
                                 file.path() + ": no BVH2 section (compile with cwbvhc --keep-sbvh)");
         }
         r.node_bytes = options.kernel == GpuKernel::kBvh2 ? scene->bvh2_bytes() : scene->node_bytes();
+        if (two_level) r.node_bytes += scene->top_level_bytes();
         r.triangle_bytes = scene->triangle_bytes();
 
         DeviceBuffer<Ray> d_rays(n);
         DeviceBuffer<Hit> d_hits(n);
+        DeviceBuffer<uint32_t> d_instances(two_level && instances ? n : 0);
         auto t0 = std::chrono::steady_clock::now();
         if (n) CWBVH_CUDA_CHECK(cudaMemcpy(d_rays.get(), rays, n * sizeof(Ray), cudaMemcpyHostToDevice));
         r.rays_upload_ms = ms_since(t0);
@@ -119,7 +132,9 @@ Expected<GpuTraceResult> trace_on_gpu(const File& file, const Ray* rays, Hit* hi
         auto run = [&](float* ms, DeviceTraceStats* st) {
             to.kernel_ms = ms;
             to.stats = st;
-            if (options.kernel == GpuKernel::kBvh2) {
+            if (two_level) {
+                trace_two_level(scene.value(), d_rays.get(), d_hits.get(), d_instances.get(), n, q, nullptr, to);
+            } else if (options.kernel == GpuKernel::kBvh2) {
                 trace_bvh2(scene.value(), d_rays.get(), d_hits.get(), n, q, nullptr, to);
             } else {
                 trace(scene.value(), d_rays.get(), d_hits.get(), n, q, nullptr, to);
@@ -142,6 +157,14 @@ Expected<GpuTraceResult> trace_on_gpu(const File& file, const Ray* rays, Hit* hi
 
         t0 = std::chrono::steady_clock::now();
         if (n) CWBVH_CUDA_CHECK(cudaMemcpy(hits, d_hits.get(), n * sizeof(Hit), cudaMemcpyDeviceToHost));
+        if (instances && n) {
+            if (two_level) {
+                CWBVH_CUDA_CHECK(
+                    cudaMemcpy(instances, d_instances.get(), n * sizeof(uint32_t), cudaMemcpyDeviceToHost));
+            } else {
+                std::fill(instances, instances + n, kInvalidIndex);
+            }
+        }
         r.hits_download_ms = ms_since(t0);
         for (size_t i = 0; i < n; ++i) r.hits += hits[i].prim != kMissPrim;
         r.nodes_visited = stats.nodes_visited;

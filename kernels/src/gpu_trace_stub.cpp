@@ -16,4 +16,10 @@ Expected<GpuTraceResult> trace_on_gpu(const File&, const Ray*, Hit*, size_t, con
     return Result::fail(Status::kDeviceError, 0, why);
 }
 
+Expected<GpuTraceResult> trace_on_gpu(const File&, const Ray*, Hit*, uint32_t*, size_t, const GpuTraceOptions&) {
+    std::string why;
+    gpu_available(why);
+    return Result::fail(Status::kDeviceError, 0, why);
+}
+
 }  // namespace cwbvh

@@ -238,4 +238,58 @@ DiffuseRays next_bounce(const PrimTable& table, const DiffuseRays& cur, const st
     return next;
 }
 
+TriangleRecord world_triangle(const InstanceRecord& inst, const TriangleRecord& tri) {
+    TriangleRecord w = tri;
+    transform_point(inst.object_to_world, tri.v0, w.v0);
+    transform_point(inst.object_to_world, tri.v1, w.v1);
+    transform_point(inst.object_to_world, tri.v2, w.v2);
+    return w;
+}
+
+bool world_hit_triangle(const TwoLevelScene& scene, const PrimTable& table, uint32_t instance, uint32_t prim,
+                        TriangleRecord& out) {
+    if (instance >= scene.instance_count) return false;
+    const TriangleRecord* t = table.find(prim);
+    if (!t) return false;
+    out = world_triangle(scene.instances[instance], *t);
+    return true;
+}
+
+DiffuseRays next_bounce(const TwoLevelScene& scene, const PrimTable& table, const DiffuseRays& cur,
+                        const std::vector<Hit>& hits, const std::vector<uint32_t>& instances, uint32_t seed,
+                        uint32_t bounce) {
+    DiffuseRays next;
+    for (size_t i = 0; i < cur.rays.size() && i < hits.size() && i < instances.size(); ++i) {
+        if (hits[i].prim == kMissPrim) continue;
+        TriangleRecord t;
+        Ray r;
+        if (world_hit_triangle(scene, table, instances[i], hits[i].prim, t) &&
+            diffuse_ray(cur.rays[i], hits[i], t, seed, cur.path[i], bounce, kInfinity, r)) {
+            next.rays.push_back(r);
+            next.path.push_back(cur.path[i]);
+        }
+    }
+    return next;
+}
+
+DiffuseRays diffuse_rays(const TwoLevelScene& scene, const std::vector<Ray>& primary, uint32_t bounces,
+                         uint32_t seed, unsigned threads) {
+    const PrimTable table(scene.tris, scene.tri_count);
+    DiffuseRays cur;
+    cur.rays = primary;
+    cur.path.resize(primary.size());
+    for (size_t i = 0; i < primary.size(); ++i) cur.path[i] = uint32_t(i);
+    CpuTraceOptions opt;
+    opt.threads = threads;
+    std::vector<Hit> hits;
+    std::vector<uint32_t> instances;
+    for (uint32_t b = 1; b <= bounces; ++b) {
+        hits.resize(cur.rays.size());
+        instances.resize(cur.rays.size());
+        (void)trace_two_level_cpu(scene, cur.rays.data(), hits.data(), instances.data(), cur.rays.size(), opt);
+        cur = next_bounce(scene, table, cur, hits, instances, seed, b);
+    }
+    return cur;
+}
+
 }  // namespace cwbvh

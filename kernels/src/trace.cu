@@ -51,6 +51,9 @@ uint32_t persistent_blocks(int device, int k, bool counting) {
 void launch(int structure, const DeviceScene& scene, const Ray* d_rays, Hit* d_hits, size_t n, Query query,
             cudaStream_t stream, const TraceOptions& options) {
     if (scene.empty()) throw std::invalid_argument("cwbvh::trace: empty DeviceScene");
+    // NODE of a two-level scene holds the bottom levels; node 0 is one mesh's root.
+    if (scene.has_two_level())
+        throw std::invalid_argument("cwbvh::trace: a two-level scene (TLAS, INST, MESH): use trace_two_level");
     if (structure == 1 && !scene.has_bvh2())
         throw std::invalid_argument("cwbvh::trace_bvh2: the scene has no BVH2 section (compile with --keep-sbvh)");
     if (n != 0 && (d_rays == nullptr || d_hits == nullptr))

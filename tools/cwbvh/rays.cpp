@@ -23,6 +23,7 @@
 #include "cwbvh/kernels/view_catalog.h"
 #include "cwbvh/loader/loader.h"
 #include "scene_camera.h"
+#include "two_level.h"
 
 namespace cwbvh::tool {
 
@@ -89,7 +90,7 @@ int run_rays(int argc, char** argv) {
     // The catalog is an input too (--views, $CWBVH_VIEWS or the compiled-in one).
     const std::vector<std::string> inputs{path, views_path ? std::string(views_path) : default_view_catalog_path()};
     if (const Result r = check_output_path(out, inputs); !r.ok()) return error(kExitBadInput, r.message.c_str());
-    auto file = File::open(path, {true, kMaskNodes | kMaskTriangles | kMaskBounds});
+    auto file = File::open(path, {true, trace_mask(kMaskBounds)});
     if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
     Camera cam;
     bool default_cam = false;
@@ -133,9 +134,15 @@ int run_rays(int argc, char** argv) {
 
     std::vector<Ray> rays = camera_rays(cam, width, height);
     if (kind == 2) {
+        // A two-level scene bounces off the world-space triangle of each hit
+        // (world_triangle: the instance's object_to_world applied to its vertices).
+        TwoLevelScene two;
         const auto nodes = file->nodes();
         const auto tris = file->triangles();
-        DiffuseRays d = diffuse_rays(nodes.data(), nodes.size(), tris.data(), tris.size(), rays, bounce, seed, threads);
+        DiffuseRays d = two_level_scene(*file, two)
+                            ? diffuse_rays(two, rays, bounce, seed, threads)
+                            : diffuse_rays(nodes.data(), nodes.size(), tris.data(), tris.size(), rays, bounce, seed,
+                                           threads);
         rays = std::move(d.rays);
     }
     if (const Result r = write_ray_file(out, rays.data(), rays.size()); !r.ok())

@@ -7,6 +7,8 @@
 //             grey shading never produces, so holes show;
 //   --heatmap wide nodes visited per camera ray on a blue-green-yellow-red ramp
 //             from the minimum to the maximum count (printed as the legend).
+// A two-level file (format 1.2) is traced by traverse_two_level.h; shading and AO
+// use each hit's world-space triangle (world_triangle), nodes counted over both levels.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -21,6 +23,7 @@
 #include "cwbvh/loader/loader.h"
 #include "png_write.h"
 #include "scene_camera.h"
+#include "two_level.h"
 
 namespace cwbvh::tool {
 namespace {
@@ -81,7 +84,7 @@ int run_render(int argc, char** argv) {
     if (!path || !out) return error(kExitUsage, usage);
 
     if (const Result r = check_output_path(out, {path}); !r.ok()) return error(kExitBadInput, r.message.c_str());
-    auto file = File::open(path, {true, kMaskNodes | kMaskTriangles | kMaskBounds});
+    auto file = File::open(path, {true, trace_mask(kMaskBounds)});
     if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
     const SceneBounds& b = *file->bounds();
     Camera cam;
@@ -95,15 +98,27 @@ int run_render(int argc, char** argv) {
 
     const auto nodes = file->nodes();
     const auto tris = file->triangles();
+    TwoLevelScene two;
+    const bool two_level = two_level_scene(*file, two);
+    // One trace call for both kinds of scene; instances[i] is hit i's INST index
+    // (two-level only).
+    auto trace = [&](const std::vector<Ray>& r, std::vector<Hit>& h, std::vector<uint32_t>& inst,
+                     const CpuTraceOptions& o) {
+        h.resize(r.size());
+        inst.assign(r.size(), kInvalidIndex);
+        return two_level ? trace_two_level_cpu(two, r.data(), h.data(), inst.data(), r.size(), o)
+                         : trace_cwbvh_cpu(nodes.data(), nodes.size(), tris.data(), tris.size(), r.data(), h.data(),
+                                           r.size(), o);
+    };
     const std::vector<Ray> rays = camera_rays(cam, width, height);
-    std::vector<Hit> hits(rays.size());
+    std::vector<Hit> hits;
+    std::vector<uint32_t> instances;
     std::vector<TraceCounters> counters(rays.size());
     CpuTraceOptions opt;
     opt.threads = threads;
     opt.test = fast ? TriangleTest::kFast : TriangleTest::kWatertight;
     opt.counters = counters.data();
-    const CpuTraceStats s = trace_cwbvh_cpu(nodes.data(), nodes.size(), tris.data(), tris.size(), rays.data(),
-                                            hits.data(), rays.size(), opt);
+    const CpuTraceStats s = trace(rays, hits, instances, opt);
     double total_seconds = s.seconds;
 
     std::vector<uint8_t> rgb(size_t(width) * height * 3);
@@ -129,6 +144,8 @@ int run_render(int argc, char** argv) {
         for (size_t i = 0; i < rays.size(); ++i) {
             if (hits[i].prim == kMissPrim) continue;
             const TriangleRecord* t = table.find(hits[i].prim);
+            TriangleRecord world;
+            if (two_level) t = world_hit_triangle(two, table, instances[i], hits[i].prim, world) ? &world : nullptr;
             float n[3];
             if (!t || !geometric_normal(*t, n)) {
                 shade[i] = 0.5;
@@ -146,13 +163,13 @@ int run_render(int argc, char** argv) {
             }
         }
         if (ao > 0) {
-            std::vector<Hit> ao_hits(ao_rays.size());
+            std::vector<Hit> ao_hits;
+            std::vector<uint32_t> ao_instances;
             CpuTraceOptions aopt;
             aopt.threads = threads;
             aopt.mode = HitMode::kAny;
             aopt.test = opt.test;
-            const CpuTraceStats as = trace_cwbvh_cpu(nodes.data(), nodes.size(), tris.data(), tris.size(),
-                                                     ao_rays.data(), ao_hits.data(), ao_rays.size(), aopt);
+            const CpuTraceStats as = trace(ao_rays, ao_hits, ao_instances, aopt);
             total_seconds += as.seconds;
             std::vector<uint32_t> open(rays.size(), 0);
             for (size_t j = 0; j < ao_rays.size(); ++j)
@@ -172,7 +189,12 @@ int run_render(int argc, char** argv) {
                     (unsigned long long)s.hits, rays.size(), kBackground[0], kBackground[1], kBackground[2]);
     }
     if (!write_png_rgb(out, rgb.data(), width, height, err)) return error(kExitBadInput, err.c_str());
-    std::printf("%s: %ux%u, trace %.3f s -> %s\n", path, width, height, total_seconds, out);
+    std::printf("%s: %ux%u%s, trace %.3f s -> %s\n", path, width, height,
+                two_level ? (", two-level: " + std::to_string(two.instance_count) + " instances of " +
+                             std::to_string(two.mesh_count) + " meshes")
+                                .c_str()
+                          : "",
+                total_seconds, out);
     return kExitOk;
 }
 

@@ -5,6 +5,8 @@
 //
 // Backends: --cpu (default) runs the shared traversal (traverse.h) on std::threads.
 // --gpu runs the CUDA kernels through cwbvh_gpu_trace (gpu_trace.h).
+// A two-level file (format 1.2) is traced by traverse_two_level.h (CPU) or the
+// two-level kernel (GPU); its hit file holds the instance of each hit (hit file 1.1).
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
@@ -18,6 +20,7 @@
 #include "cwbvh/kernels/gpu_trace.h"
 #include "cwbvh/kernels/ray_file.h"
 #include "cwbvh/loader/loader.h"
+#include "two_level.h"
 
 namespace cwbvh::tool {
 namespace {
@@ -32,13 +35,14 @@ struct TraceRequest {
 /// Traces `rays` on the GPU (cwbvh_gpu_trace; in a build without CUDA it
 /// reports why there is no GPU path) and fills `stats` (seconds = median
 /// kernel time, so Mrays/s is the kernel's rate, excluding transfers).
-bool trace_gpu(const File& file, const std::vector<Ray>& rays, std::vector<Hit>& hits, const TraceRequest& r,
-               CpuTraceStats& stats, std::string& err) {
+bool trace_gpu(const File& file, const std::vector<Ray>& rays, std::vector<Hit>& hits,
+               std::vector<uint32_t>& instances, const TraceRequest& r, CpuTraceStats& stats, std::string& err) {
     GpuTraceOptions o;
     o.any = r.any;
     o.kernel = r.bvh2 ? GpuKernel::kBvh2 : GpuKernel::kCwbvh;
     o.test = r.fast ? TriangleTest::kFast : TriangleTest::kWatertight;
-    Expected<GpuTraceResult> traced = trace_on_gpu(file, rays.data(), hits.data(), rays.size(), o);
+    Expected<GpuTraceResult> traced = trace_on_gpu(
+        file, rays.data(), hits.data(), instances.empty() ? nullptr : instances.data(), rays.size(), o);
     if (!traced.ok()) {
         err = "trace: --gpu: " + traced.error().message;
         return false;
@@ -56,11 +60,15 @@ bool trace_gpu(const File& file, const std::vector<Ray>& rays, std::vector<Hit>&
     return true;
 }
 
-CpuTraceStats trace_cpu(const File& f, const std::vector<Ray>& rays, std::vector<Hit>& hits, const TraceRequest& r) {
+CpuTraceStats trace_cpu(const File& f, const std::vector<Ray>& rays, std::vector<Hit>& hits,
+                        std::vector<uint32_t>& instances, const TraceRequest& r) {
     CpuTraceOptions o;
     o.mode = r.any ? HitMode::kAny : HitMode::kClosest;
     o.test = r.fast ? TriangleTest::kFast : TriangleTest::kWatertight;
     o.threads = r.threads;
+    TwoLevelScene scene;
+    if (two_level_scene(f, scene))
+        return trace_two_level_cpu(scene, rays.data(), hits.data(), instances.data(), rays.size(), o);
     const auto tris = f.triangles();
     if (r.bvh2) {
         const auto n = f.bvh2();
@@ -119,30 +127,36 @@ int run_trace(int argc, char** argv) {
         if (const Result r = check_output_path(hits_path, {path, rays_path}); !r.ok())
             return error(kExitBadInput, r.message.c_str());
     }
-    const uint32_t mask = kMaskNodes | kMaskTriangles | (req.bvh2 ? kMaskBvh2 : 0u);
-    auto file = File::open(path, {true, mask});
+    auto file = File::open(path, {true, trace_mask(req.bvh2 ? kMaskBvh2 : 0u)});
     if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
+    const bool two_level = file->is_two_level();
+    if (two_level && req.bvh2)
+        return error(kExitBadInput, (std::string(path) + ": a two-level scene: --bvh2 traces single-level files only "
+                                                         "(compile with cwbvhc --flatten)")
+                                        .c_str());
     if (req.bvh2 && file->bvh2().empty())
         return error(kExitBadInput, (std::string(path) + ": no BVH2 section (compile with --keep-sbvh)").c_str());
     std::vector<Ray> rays;
     std::string err;
     if (const Result r = read_ray_file(rays_path, rays); !r.ok()) return error(kExitBadInput, r.message.c_str());
     std::vector<Hit> hits(rays.size());
+    std::vector<uint32_t> instances(two_level ? rays.size() : 0);
 
     std::vector<double> secs;
     CpuTraceStats s;
     for (uint32_t k = 0; k < repeat; ++k) {
         if (gpu) {
-            if (!trace_gpu(*file, rays, hits, req, s, err)) return error(kExitBadInput, err.c_str());
+            if (!trace_gpu(*file, rays, hits, instances, req, s, err)) return error(kExitBadInput, err.c_str());
         } else {
-            s = trace_cpu(*file, rays, hits, req);
+            s = trace_cpu(*file, rays, hits, instances, req);
         }
         secs.push_back(s.seconds);
     }
     std::sort(secs.begin(), secs.end());
     const double median = secs[secs.size() / 2];
     const double n = double(std::max<uint64_t>(s.rays, 1));
-    std::printf("backend          %s (%s, %s, %s)\n", gpu ? "gpu" : "cpu", req.bvh2 ? "bvh2" : "cwbvh",
+    std::printf("backend          %s (%s, %s, %s)\n", gpu ? "gpu" : "cpu",
+                req.bvh2 ? "bvh2" : (two_level ? "two-level cwbvh" : "cwbvh"),
                 req.any ? "any-hit" : "closest-hit", req.fast ? "fast test" : "watertight test");
     std::printf("rays             %llu\n", (unsigned long long)s.rays);
     std::printf("hits             %llu (%.2f%%)\n", (unsigned long long)s.hits, 100.0 * double(s.hits) / n);
@@ -158,7 +172,10 @@ int run_trace(int argc, char** argv) {
     }
     if (hits_path) {
         const uint32_t flags = (req.any ? kHitFileAnyHit : 0u) | (req.fast ? 0u : kHitFileWatertight);
-        if (const Result r = write_hit_file(hits_path, hits.data(), hits.size(), flags); !r.ok())
+        // Two-level: 20-byte records with the instance (hit file 1.1); else the 1.0 file.
+        if (const Result r = write_hit_file(hits_path, hits.data(), two_level ? instances.data() : nullptr,
+                                            hits.size(), flags);
+            !r.ok())
             return error(kExitBadInput, r.message.c_str());
     }
     return (s.stack_overflows || s.bad_indices) ? kExitBadInput : kExitOk;

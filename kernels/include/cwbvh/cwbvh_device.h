@@ -16,7 +16,9 @@ extern "C" {
 typedef struct cwbvh_device_scene cwbvh_device_scene;
 
 /* Uploads NODE, TRIS and (if present) BVH2 of `file`, which must have been opened
- * successfully with at least CWBVH_SECTION_NODES | CWBVH_SECTION_TRIANGLES.
+ * successfully with at least CWBVH_SECTION_NODES | CWBVH_SECTION_TRIANGLES; for a
+ * two-level file (cwbvh_is_two_level) also TLAS, INST and MESH, which need
+ * CWBVH_SECTION_TWO_LEVEL (CWBVH_ERROR_INVALID_ARGUMENT without it).
  * Returns CWBVH_OK and *out, or an error with *out = NULL; the message (no GPU, old
  * driver, out of device memory, with the failing CUDA call) is copied into
  * error/error_size when error != NULL. Errors: CWBVH_ERROR_INVALID_ARGUMENT (NULL
@@ -28,6 +30,11 @@ cwbvh_status cwbvh_device_upload(const cwbvh_file* file, cwbvh_device_scene** ou
 const void* cwbvh_device_nodes(const cwbvh_device_scene* scene, uint64_t* count);
 const void* cwbvh_device_triangles(const cwbvh_device_scene* scene, uint64_t* count);
 const void* cwbvh_device_bvh2(const cwbvh_device_scene* scene, uint64_t* count);
+/* Two-level files: the top level (80-byte nodes), instances (128-byte InstanceRecord)
+ * and meshes (64-byte MeshRecord); NULL/0 for a single-level file. */
+const void* cwbvh_device_top_nodes(const cwbvh_device_scene* scene, uint64_t* count);
+const void* cwbvh_device_instances(const cwbvh_device_scene* scene, uint64_t* count);
+const void* cwbvh_device_meshes(const cwbvh_device_scene* scene, uint64_t* count);
 
 /* Frees the device memory. NULL is a no-op. */
 void cwbvh_device_free(cwbvh_device_scene* scene);

@@ -9,6 +9,7 @@
 #include "cwbvh/format/format.h"
 #include "cwbvh/kernels/ray.h"
 #include "cwbvh/kernels/traverse.h"
+#include "cwbvh/kernels/traverse_two_level.h"
 #include "cwbvh/kernels/triangle_intersect.h"
 
 namespace cwbvh {
@@ -54,5 +55,10 @@ CpuTraceStats trace_cwbvh_cpu(const CwbvhNode* nodes, size_t node_count, const T
 CpuTraceStats trace_bvh2_cpu(const Bvh2Node* nodes, size_t node_count, const TriangleRecord* tris,
                              size_t tri_count, const Ray* rays, Hit* hits, size_t ray_count,
                              const CpuTraceOptions& options = {});
+
+/// Same over a two-level scene (traverse_two_level.h); instances (optional, ray_count
+/// entries) receives each hit's INST index (kInvalidIndex for a miss).
+CpuTraceStats trace_two_level_cpu(const TwoLevelScene& scene, const Ray* rays, Hit* hits, uint32_t* instances,
+                                  size_t ray_count, const CpuTraceOptions& options = {});
 
 }  // namespace cwbvh

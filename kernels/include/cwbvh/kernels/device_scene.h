@@ -1,6 +1,7 @@
 // cwbvh::DeviceScene: the traversal sections of a validated .cwbvh file in GPU
 // memory (NODE + TRIS, optionally the binary BVH: BV2L, or a legacy BVH2 section;
-// the BVH2 kernel reads both). Move-only RAII; frees on destruction.
+// the BVH2 kernel reads both; and for a two-level scene, format 1.2, the top
+// level TLAS with INST and MESH, which trace_two_level reads). Move-only RAII; frees on destruction.
 // Plain C++ header: no CUDA types, so callers need not be compiled by nvcc.
 //
 // Upload method (UploadMethod::kPinnedStaging, the default):
@@ -26,6 +27,7 @@
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/status.h"
 #include "cwbvh/kernels/node_intersect_fast.h"
+#include "cwbvh/kernels/traverse_two_level.h"
 
 namespace cwbvh {
 
@@ -41,6 +43,19 @@ struct UploadOptions {
     UploadMethod method = UploadMethod::kPinnedStaging;
     int device = -1;   ///< CUDA device ordinal; -1: the calling thread's current device
 };
+
+/// The top level of a two-level scene (format 1.2) as host pointers + counts.
+struct TwoLevelSections {
+    const CwbvhNode* top_nodes = nullptr;  ///< TLAS
+    size_t top_node_count = 0;
+    const InstanceRecord* instances = nullptr;  ///< INST
+    size_t instance_count = 0;
+    const MeshRecord* meshes = nullptr;  ///< MESH
+    size_t mesh_count = 0;
+};
+
+/// The two-level sections of a validated File; all empty for a single-level file.
+TwoLevelSections two_level_sections(const File& file);
 
 struct UploadStats {
     double seconds = 0.0;  ///< wall time of allocation + copies (synchronised)
@@ -60,6 +75,12 @@ public:
     static Expected<DeviceScene> upload(const CwbvhNode* nodes, size_t node_count,
                                         const TriangleRecord* triangles, size_t triangle_count,
                                         const Bvh2Node* bvh2, size_t bvh2_count, const UploadOptions& options = {});
+    /// Same with the top level of a two-level scene (TLAS, INST, MESH; all three or
+    /// none). The File overload uploads them whenever the file has them.
+    static Expected<DeviceScene> upload(const CwbvhNode* nodes, size_t node_count,
+                                        const TriangleRecord* triangles, size_t triangle_count,
+                                        const Bvh2Node* bvh2, size_t bvh2_count, const TwoLevelSections& two_level,
+                                        const UploadOptions& options = {});
 
     DeviceScene() = default;
     DeviceScene(DeviceScene&& other) noexcept;
@@ -82,6 +103,17 @@ public:
     uint64_t triangle_bytes() const { return uint64_t(tri_count_) * sizeof(TriangleRecord); }
     uint64_t bvh2_bytes() const { return uint64_t(bvh2_count_) * sizeof(Bvh2Node); }
     int device() const { return device_; }
+    /// Two-level scene (TLAS, INST, MESH uploaded): trace_two_level applies.
+    bool has_two_level() const { return top_nodes_ != nullptr; }
+    /// The device pointers of the two-level traversal (valid when has_two_level()).
+    TwoLevelScene two_level() const {
+        return TwoLevelScene{top_nodes_, top_node_count_, instances_, instance_count_, meshes_,
+                             mesh_count_, nodes_,     node_count_,     tris_,      tri_count_};
+    }
+    uint64_t top_level_bytes() const {
+        return uint64_t(top_node_count_) * sizeof(CwbvhNode) + uint64_t(instance_count_) * sizeof(InstanceRecord) +
+               uint64_t(mesh_count_) * sizeof(MeshRecord);
+    }
     /// Scene constants of the CWBVH kernel's fast node test (node_scale() over NODE at upload).
     const NodeScale& node_scale() const { return node_scale_; }
     const UploadStats& upload_stats() const { return stats_; }
@@ -93,7 +125,11 @@ private:
     CwbvhNode* nodes_ = nullptr;
     TriangleRecord* tris_ = nullptr;
     Bvh2Node* bvh2_ = nullptr;
+    CwbvhNode* top_nodes_ = nullptr;
+    InstanceRecord* instances_ = nullptr;
+    MeshRecord* meshes_ = nullptr;
     uint32_t node_count_ = 0, tri_count_ = 0, bvh2_count_ = 0;
+    uint32_t top_node_count_ = 0, instance_count_ = 0, mesh_count_ = 0;
     bool bvh2_leaf_ranges_ = false;
     int device_ = -1;
     NodeScale node_scale_{};

@@ -67,6 +67,14 @@ bool gpu_available(std::string& why);
 Expected<GpuTraceResult> trace_on_gpu(const File& file, const Ray* rays, Hit* hits, size_t n,
                                       const GpuTraceOptions& options);
 
+/// Same; a two-level file (format 1.2) runs the two-level kernel (trace_two_level,
+/// GpuKernel::kCwbvh only) and fills `instances` (n INST indices, kInvalidIndex for a
+/// miss) when it is not null. For a single-level file `instances`, if given, is
+/// filled with kInvalidIndex. (The overload above traces two-level files too,
+/// without their instance ids.)
+Expected<GpuTraceResult> trace_on_gpu(const File& file, const Ray* rays, Hit* hits, uint32_t* instances, size_t n,
+                                      const GpuTraceOptions& options);
+
 inline Expected<GpuTraceResult> trace_on_gpu(const File& file, const Ray* rays, Hit* hits, size_t n, bool any,
                                    GpuKernel kind) {
     GpuTraceOptions o;

@@ -41,6 +41,21 @@ static_assert(offsetof(Hit, prim) == 12);
 
 CWBVH_HD CWBVH_INLINE Hit make_miss() { return Hit{kInfinity, 0.0f, 0.0f, kMissPrim}; }
 
+/// The hit record of a two-level scene (hit file 1.1, 20 bytes): a Hit and the
+/// INST index of the instance hit (kInvalidIndex = 0xFFFFFFFF for a miss). In
+/// memory the traversals keep the 16-byte Hit and write the instance ids to a
+/// separate array (the single-level kernels' store stays one 16-byte write).
+struct InstanceHit {
+    float t;
+    float u;
+    float v;
+    uint32_t prim;
+    uint32_t instance;
+};
+static_assert(sizeof(InstanceHit) == 20);
+static_assert(offsetof(InstanceHit, prim) == 12);
+static_assert(offsetof(InstanceHit, instance) == 16);
+
 /// The rays every traversal answers with a miss without touching the tree
 /// (spec/rays.md, "Defined answers"): any NaN or infinite origin or direction
 /// component, a zero direction (all three components +-0), a NaN tmin or tmax,
@@ -62,7 +77,10 @@ CWBVH_HD CWBVH_INLINE bool ray_is_traceable(const Ray& r) {
 inline constexpr uint8_t kRayFileMagic[8] = {0xAB, 'C', 'W', 'R', 'A', 'Y', 0x0D, 0x0A};
 inline constexpr uint8_t kHitFileMagic[8] = {0xAB, 'C', 'W', 'H', 'I', 'T', 0x0D, 0x0A};
 inline constexpr uint16_t kRayFileVersionMajor = 1;
-inline constexpr uint16_t kRayFileVersionMinor = 0;
+inline constexpr uint16_t kRayFileVersionMinor = 0;  ///< written with 32-byte rays and 16-byte hits
+/// Minor version of a hit file with 20-byte InstanceHit records (two-level scenes).
+/// Files with 16-byte records are still written as 1.0, byte for byte as before.
+inline constexpr uint16_t kHitFileInstanceMinor = 1;
 
 enum HitFileFlags : uint32_t {
     kHitFileAnyHit = 1u << 0,      ///< produced by an any-hit (occlusion) query
@@ -72,8 +90,8 @@ enum HitFileFlags : uint32_t {
 struct RayFileHeader {
     uint8_t magic[8];        ///< kRayFileMagic or kHitFileMagic
     uint16_t version_major;  ///< 1; a reader rejects an unknown major
-    uint16_t version_minor;  ///< 0; a reader accepts a newer minor
-    uint32_t record_size;    ///< 32 (Ray) or 16 (Hit)
+    uint16_t version_minor;  ///< 0 (1 for InstanceHit records); a reader accepts a newer minor
+    uint32_t record_size;    ///< 32 (Ray), 16 (Hit) or, from minor 1, 20 (InstanceHit)
     uint64_t count;          ///< number of records
     uint32_t flags;          ///< ray file: 0; hit file: HitFileFlags
     uint32_t reserved;       ///< must be 0

@@ -12,6 +12,7 @@
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/status.h"
 #include "cwbvh/kernels/ray.h"
+#include "cwbvh/kernels/traverse_two_level.h"
 
 namespace cwbvh {
 
@@ -91,5 +92,31 @@ DiffuseRays next_bounce(const PrimTable& table, const DiffuseRays& cur, const st
 /// alive (misses end a path). bounces >= 1. Deterministic for any thread count.
 DiffuseRays diffuse_rays(const CwbvhNode* nodes, size_t node_count, const TriangleRecord* tris, size_t tri_count,
                          const std::vector<Ray>& primary, uint32_t bounces, uint32_t seed, unsigned threads);
+
+// ---------------------------------------------------------------------------
+// Two-level scenes (format 1.2): a hit names an instance and a triangle of its mesh,
+// whose record is in object space; the shading and bounce code above wants the
+// world-space triangle, which world_triangle makes.
+// ---------------------------------------------------------------------------
+
+/// `tri` (object space) moved to world space by the instance's object_to_world
+/// (transform_point, the normative fma order), prim kept. The winding is kept, so
+/// a mirrored instance's world normal (geometric_normal) is flipped with it, as the
+/// flattened scene's would be.
+TriangleRecord world_triangle(const InstanceRecord& inst, const TriangleRecord& tri);
+
+/// The world-space triangle of a two-level hit (prim of instance `instance`);
+/// false when either index is not in the scene. `table` indexes scene.tris.
+bool world_hit_triangle(const TwoLevelScene& scene, const PrimTable& table, uint32_t instance, uint32_t prim,
+                        TriangleRecord& out);
+
+/// next_bounce for a two-level scene: instances[i] is hit i's INST index.
+DiffuseRays next_bounce(const TwoLevelScene& scene, const PrimTable& table, const DiffuseRays& cur,
+                        const std::vector<Hit>& hits, const std::vector<uint32_t>& instances, uint32_t seed,
+                        uint32_t bounce);
+
+/// diffuse_rays over a two-level scene (trace_two_level_cpu, closest hit, watertight).
+DiffuseRays diffuse_rays(const TwoLevelScene& scene, const std::vector<Ray>& primary, uint32_t bounces,
+                         uint32_t seed, unsigned threads);
 
 }  // namespace cwbvh

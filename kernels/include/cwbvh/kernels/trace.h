@@ -53,13 +53,21 @@ struct TraceOptions {
     float* kernel_ms = nullptr;
 };
 
-/// CWBVH kernel. d_rays, d_hits: n records each, on scene.device().
+/// CWBVH kernel. d_rays, d_hits: n records each, on scene.device(). A two-level
+/// scene (DeviceScene::has_two_level()) is refused (std::invalid_argument): trace_two_level.
 void trace(const DeviceScene& scene, const Ray* d_rays, Hit* d_hits, size_t n, Query query,
            cudaStream_t stream = nullptr, const TraceOptions& options = {});
 
 /// BVH2 baseline kernel (needs a scene uploaded with its BVH2 section).
 void trace_bvh2(const DeviceScene& scene, const Ray* d_rays, Hit* d_hits, size_t n, Query query,
                 cudaStream_t stream = nullptr, const TraceOptions& options = {});
+
+/// Two-level kernel (kernels/src/trace_two_level.cu) over a scene uploaded with its
+/// top level (DeviceScene::has_two_level()). d_instances: optional device array of n
+/// INST indices (kInvalidIndex for a miss); d_hits as trace(), prim the global
+/// stored id. Same Hit records as trace_two_level_cpu (cpu_trace.h), bit for bit.
+void trace_two_level(const DeviceScene& scene, const Ray* d_rays, Hit* d_hits, uint32_t* d_instances, size_t n,
+                     Query query, cudaStream_t stream = nullptr, const TraceOptions& options = {});
 
 /// Static kernel properties, from cudaFuncGetAttributes (for reports).
 struct KernelInfo {
