@@ -15,9 +15,9 @@ trap 'rm -rf "$tmp"' EXIT
 {
   echo "# $("$nvcc" --version | tail -2 | head -1)"
   echo "# -std=c++17 -O3 -DNDEBUG -arch=$arch -Xptxas -v; commit $(git -C "$root" rev-parse --short HEAD)$(git -C "$root" diff --quiet -- kernels format || echo '+local changes')"
-  for cu in kernels_cwbvh kernels_bvh2; do
+  for cu in kernels_cwbvh kernels_bvh2 trace_two_level; do
     "$nvcc" -std=c++17 -O3 -DNDEBUG -arch="$arch" -Xptxas -v -I"$root/kernels/include" -I"$root/format/include" \
-      -I"$root/loader/include" -c "$root/kernels/src/$cu.cu" -o "$tmp/$cu.o" 2>&1 | c++filt > "$tmp/$cu.txt"
+      -I"$root/loader/include" -c "$root/kernels/src/$cu.cu" -o "$tmp/$cu.o" 2>&1 | c++filt > "$tmp/kernels_$cu.txt"
   done
   echo "#"
   echo "# kernel (TriangleTest 0 watertight / 1 fast, HitMode 0 closest / 1 any, counting variant true/false): registers, spill stores/loads, stack frame"
@@ -25,9 +25,9 @@ trap 'rm -rf "$tmp"' EXIT
 import re, sys
 name = None
 for line in sys.stdin:
-    m = re.search(r"Function properties for (?:void )?(.+?)\((?:cwbvh::gpu::)?LaunchParams\)\s*$", line)
+    m = re.search(r"Function properties for (?:void )?(.+?)\((?:cwbvh::gpu::)?(?:\(anonymous namespace\)::)?(?:TwoLevel)?LaunchParams\)\s*$", line)
     if m:
-        name = m.group(1).replace("cwbvh::gpu::", "").replace("cwbvh::TriangleTest", "test").replace("cwbvh::HitMode", "mode")
+        name = m.group(1).replace("cwbvh::gpu::", "").replace("(anonymous namespace)::", "").replace("cwbvh::TriangleTest", "test").replace("cwbvh::HitMode", "mode")
     m = re.search(r"(\d+) bytes stack frame, (\d+) bytes spill stores, (\d+) bytes spill loads", line)
     if m and name:
         frame, st, ld = m.groups()

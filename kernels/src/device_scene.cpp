@@ -153,6 +153,9 @@ Expected<DeviceScene> DeviceScene::upload(const CwbvhNode* node_ptr, size_t node
         scene.tri_count_ = uint32_t(triangles.size());
         scene.bvh2_ = alloc_and_copy(bvh2, s, bytes);
         scene.bvh2_count_ = uint32_t(bvh2.size());
+        if (!top.empty())
+            scene.two_level_scale_ =
+                merge_node_scale(scene.node_scale_, cwbvh::node_scale(top.data(), top.size()));
         scene.top_nodes_ = alloc_and_copy(top, s, bytes);
         scene.top_node_count_ = uint32_t(top.size());
         scene.instances_ = alloc_and_copy(inst, s, bytes);
@@ -193,6 +196,7 @@ DeviceScene::DeviceScene(DeviceScene&& o) noexcept
       bvh2_leaf_ranges_(std::exchange(o.bvh2_leaf_ranges_, false)),
       device_(std::exchange(o.device_, -1)),
       node_scale_(std::exchange(o.node_scale_, NodeScale{})),
+      two_level_scale_(std::exchange(o.two_level_scale_, NodeScale{})),
       stats_(o.stats_) {}
 
 DeviceScene& DeviceScene::operator=(DeviceScene&& o) noexcept {
@@ -213,6 +217,7 @@ DeviceScene& DeviceScene::operator=(DeviceScene&& o) noexcept {
         bvh2_leaf_ranges_ = std::exchange(o.bvh2_leaf_ranges_, false);
         device_ = std::exchange(o.device_, -1);
         node_scale_ = std::exchange(o.node_scale_, NodeScale{});
+        two_level_scale_ = std::exchange(o.two_level_scale_, NodeScale{});
         stats_ = o.stats_;
     }
     return *this;
@@ -242,6 +247,7 @@ void DeviceScene::release() noexcept {
     top_node_count_ = instance_count_ = mesh_count_ = 0;
     bvh2_leaf_ranges_ = false;
     node_scale_ = NodeScale{};
+    two_level_scale_ = NodeScale{};
 }
 
 }  // namespace cwbvh

@@ -8,8 +8,11 @@
 // watertight triangle tests, the same transform.h fma order) with the kernel's
 // stack (gpu_stack.h: 12 entries per ray in shared memory, the rest in local
 // memory). Persistent warps fetch 32 rays per atomicAdd; a warp fetches again when
-// all its lanes are done (no dynamic fetch, no postponing, the scalar node test:
-// the single-level kernel's warp policies are the next step once a GPU measures it).
+// all its lanes are done (no dynamic fetch, no postponing: the single-level kernel's
+// warp policies are the next step once a GPU measures it). The node test is the
+// single-level kernel's: intersect_node_fast on sm_90 for the world ray and every
+// object-space ray its set-up admits (scene constants over NODE and TLAS), the
+// reference arithmetic otherwise.
 #include <cuda_runtime.h>
 
 #include <algorithm>
@@ -25,6 +28,15 @@ namespace cwbvh {
 namespace gpu {
 namespace {
 
+/// __launch_bounds__ minimum blocks per SM. 4 caps the kernel at 128 registers: 122-128
+/// and no spills on sm_90 and sm_75 with the fast node test (16 warps per SM); without
+/// a cap one variant takes 141; 5 caps at 96 (20-52 B of spills in four variants), 6 at
+/// 80 (100-208 B). Which is fastest waits for a GPU run (the single-level kernel's
+/// 80-register cap won 5-13 % on the H100, issue 10); -DCWBVH_TWO_LEVEL_MIN_BLOCKS=N
+/// tries others.
+#ifndef CWBVH_TWO_LEVEL_MIN_BLOCKS
+#define CWBVH_TWO_LEVEL_MIN_BLOCKS 4
+#endif
 inline constexpr int kTwoLevelWarpsPerBlock = 4;
 inline constexpr int kTwoLevelBlockThreads = kTwoLevelWarpsPerBlock * kWarpSize;
 
@@ -39,7 +51,7 @@ struct TwoLevelLaunchParams {
 };
 
 template <TriangleTest kTest, HitMode kMode, bool kCount>
-__global__ void __launch_bounds__(kTwoLevelBlockThreads) two_level_trace_kernel(TwoLevelLaunchParams p) {
+__global__ void __launch_bounds__(kTwoLevelBlockThreads, CWBVH_TWO_LEVEL_MIN_BLOCKS) two_level_trace_kernel(TwoLevelLaunchParams p) {
     __shared__ PackedEntry s_stack[kTwoLevelWarpsPerBlock][kGpuSharedStackEntries][kWarpSize];
     const unsigned lane = threadIdx.x & (kWarpSize - 1);
     GpuStack stack(&s_stack[threadIdx.x / kWarpSize][0][lane], kWarpSize);

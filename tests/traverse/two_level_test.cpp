@@ -5,6 +5,8 @@
 // times, degenerate instance records, any-hit.
 #include <gtest/gtest.h>
 
+#include <cstring>
+
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -14,6 +16,7 @@
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/ray_gen.h"
 #include "cwbvh/loader/loader.h"
+#include "cwbvh/kernels/node_intersect_fast.h"
 #include "cwbvh/kernels/traverse_two_level.h"
 #include "two_level_scene.h"
 
@@ -121,7 +124,10 @@ struct TwoLevelHits {
     CpuTraceStats stats;
 };
 
-TwoLevelHits trace_two_level(const TwoLevelBuild& b, const std::vector<Ray>& rays, HitMode mode = HitMode::kClosest) {
+/// scale: the fast node test's constants (what DeviceScene::upload gives the kernel);
+/// NodeScale{} runs the CPU reference's node test.
+TwoLevelHits trace_two_level(const TwoLevelBuild& b, const std::vector<Ray>& rays, HitMode mode = HitMode::kClosest,
+                             const NodeScale& scale = NodeScale{}) {
     TwoLevelHits r;
     r.hits.resize(rays.size());
     r.inst.resize(rays.size());
@@ -130,7 +136,9 @@ TwoLevelHits trace_two_level(const TwoLevelBuild& b, const std::vector<Ray>& ray
     o.threads = 1;
     std::vector<TraceStatus> st(rays.size());
     o.statuses = st.data();
-    r.stats = trace_two_level_cpu(b.view(), rays.data(), r.hits.data(), r.inst.data(), rays.size(), o);
+    TwoLevelScene view = b.view();
+    view.node_scale = scale;
+    r.stats = trace_two_level_cpu(view, rays.data(), r.hits.data(), r.inst.data(), rays.size(), o);
     for (size_t i = 0; i < rays.size(); ++i) EXPECT_TRUE(st[i] == TraceStatus::kOk) << "ray " << i;
     return r;
 }
@@ -364,6 +372,47 @@ TEST(TwoLevel, MatchesFlattenedClosestAndAny) {
         EXPECT_TRUE(found) << "ray " << i << ": any-hit answer is not a hit of its instance";
     }
     EXPECT_GT(hits, rays.size() / 10);
+}
+
+// The GPU kernel's node test (intersect_node_fast, enabled per world and per object-space
+// ray by the scene constants over NODE and TLAS that DeviceScene::upload merges) gives
+// the reference's hits, bit for bit, closest and any. The host runs the same arithmetic
+// (intrinsics emulated exactly), so this is what the two-level kernel computes on sm_90.
+TEST(TwoLevel, FastNodeTestGivesTheReferenceHits) {
+    const TwoLevelBuild b = build_two_level(test_meshes(), random_placements(60, 3, 40, 2));
+    float lo[3], hi[3];
+    world_box(b, lo, hi);
+    const std::vector<Ray> rays = random_rays(lo, hi, 20000, 5);
+    const NodeScale scale = merge_node_scale(node_scale(b.nodes.data(), b.nodes.size()),
+                                             node_scale(b.tlas.data(), b.tlas.size()));
+    ASSERT_EQ(scale.usable, 1u);
+    for (HitMode mode : {HitMode::kClosest, HitMode::kAny}) {
+        const TwoLevelHits ref = trace_two_level(b, rays, mode);
+        const TwoLevelHits fast = trace_two_level(b, rays, mode, scale);
+        size_t hits = 0;
+        for (size_t i = 0; i < rays.size(); ++i) {
+            hits += ref.hits[i].prim != kMissPrim;
+            if (mode == HitMode::kClosest) {
+                ASSERT_EQ(std::memcmp(&ref.hits[i], &fast.hits[i], sizeof(Hit)), 0) << "ray " << i;
+                ASSERT_EQ(ref.inst[i], fast.inst[i]) << "ray " << i;
+            } else {
+                ASSERT_EQ(ref.hits[i].prim != kMissPrim, fast.hits[i].prim != kMissPrim) << "ray " << i;
+            }
+        }
+        EXPECT_GT(hits, rays.size() / 10);
+    }
+    // And the fast test did run: the scene constants admit (nearly) every world ray.
+    size_t enabled = 0;
+    for (const Ray& r : rays) {
+        NodeRay n = make_node_ray(r);
+        enable_fast_node_test(n, scale, r.dir, r.tmin == 0.0f ? 0.0f : r.tmin);
+        enabled += n.fast;
+    }
+    EXPECT_GT(enabled, rays.size() * 9 / 10);
+    // A scene constant that cannot hold for TLAS (usable 0) turns the fast test off.
+    NodeScale off = scale;
+    off.usable = 0;
+    EXPECT_EQ(merge_node_scale(scale, off).usable, 0u);
 }
 
 TEST(TwoLevel, CountersAndStatuses) {

@@ -103,14 +103,7 @@ CWBVH_HD CWBVH_INLINE NodeStep next_node(CwbvhLane<kTest>& l, Stack& stack, uint
 /// parameters; see intersect_node_fast).
 template <TriangleTest kTest>
 CWBVH_HD CWBVH_INLINE void visit_node(CwbvhLane<kTest>& l, const CwbvhNode& node, uint32_t one_bits) {
-#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 900
-    // Before sm_90 the three-input integer min/max of the fast test are emulated
-    // (several instructions each) and the kernel would spill (sm_75): reference arithmetic.
-    const uint32_t hitmask = intersect_node(node, l.nray, l.tmin, l.tmax);
-#else
-    const uint32_t hitmask = l.nray.fast ? intersect_node_fast(node, l.nray, l.tmax, one_bits)
-                                         : intersect_node(node, l.nray, l.tmin, l.tmax);
-#endif
+    const uint32_t hitmask = intersect_node_dispatch(node, l.nray, l.tmin, l.tmax, one_bits);
     l.node_group = StackEntry{node.child_base, (hitmask & 0xFF000000u) | node.imask};
     l.tri_group = StackEntry{node.tri_base, hitmask & 0x00FFFFFFu};
 }

@@ -108,7 +108,7 @@ public:
     /// The device pointers of the two-level traversal (valid when has_two_level()).
     TwoLevelScene two_level() const {
         return TwoLevelScene{top_nodes_, top_node_count_, instances_, instance_count_, meshes_,
-                             mesh_count_, nodes_,     node_count_,     tris_,      tri_count_};
+                             mesh_count_, nodes_,     node_count_,     tris_,      tri_count_, two_level_scale_};
     }
     uint64_t top_level_bytes() const {
         return uint64_t(top_node_count_) * sizeof(CwbvhNode) + uint64_t(instance_count_) * sizeof(InstanceRecord) +
@@ -133,6 +133,7 @@ private:
     bool bvh2_leaf_ranges_ = false;
     int device_ = -1;
     NodeScale node_scale_{};
+    NodeScale two_level_scale_{};  ///< merge_node_scale over NODE and TLAS (two-level scenes)
     UploadStats stats_;
 };
 

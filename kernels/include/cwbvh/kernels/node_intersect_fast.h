@@ -239,6 +239,22 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const Nod
     return hitmask;
 }
 
+/// The node test a traversal runs on `r`: intersect_node_fast where the ray's set-up
+/// enabled it (r.fast) on sm_90 and later, the reference arithmetic otherwise. Before
+/// sm_90 the three-input integer min/max of the fast test are emulated (several
+/// instructions each) and the kernels would spill (sm_75): reference arithmetic. On the
+/// host r.fast selects too (the warp model and the tests run what the kernel runs).
+/// one: NodeScale::one_bits (see plane_unit).
+CWBVH_HD CWBVH_INLINE uint32_t intersect_node_dispatch(const CwbvhNode& n, const NodeRay& r, float tmin, float tmax,
+                                                       uint32_t one) {
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 900
+    (void)one;
+    return intersect_node(n, r, tmin, tmax);
+#else
+    return r.fast ? intersect_node_fast(n, r, tmax, one) : intersect_node(n, r, tmin, tmax);
+#endif
+}
+
 #if !defined(__CUDA_ARCH__)
 /// The scene constants for `count` nodes (host, once per upload: O(nodes)). Exponents
 /// outside 1..kFastMaxExponent (0 decodes every plane to p, which 2^15 * 2^(e-127)
@@ -269,6 +285,17 @@ inline NodeScale node_scale(const CwbvhNode* nodes, uint64_t count) {
     sc.rcp_floor = emin <= 112 ? exponent_scale(uint8_t(127 - 14 - emin)) : kFloatMin;
     sc.usable = 1u;
     return sc;
+}
+
+/// Constants that hold for the nodes of both a and b (a two-level scene: NODE and
+/// TLAS): the larger bounds and rcp floor; usable only when both are.
+inline NodeScale merge_node_scale(const NodeScale& a, const NodeScale& b) {
+    if (a.usable == 0 || b.usable == 0) return NodeScale{0.0f, 0.0f, 0.0f, 0u, 0x3F800000u};
+    NodeScale m = a;
+    m.plane_max = a.plane_max > b.plane_max ? a.plane_max : b.plane_max;
+    m.scale_max = a.scale_max > b.scale_max ? a.scale_max : b.scale_max;
+    m.rcp_floor = a.rcp_floor > b.rcp_floor ? a.rcp_floor : b.rcp_floor;
+    return m;
 }
 #endif
 

@@ -29,6 +29,7 @@
 #include "cwbvh/format/node_decode.h"
 #include "cwbvh/kernels/fp.h"
 #include "cwbvh/kernels/node_intersect.h"
+#include "cwbvh/kernels/node_intersect_fast.h"
 #include "cwbvh/kernels/ray.h"
 #include "cwbvh/kernels/triangle_intersect.h"
 
@@ -92,11 +93,13 @@ struct NoPostpone {
 /// become the new node and triangle groups; a group without node bits is a
 /// (popped) triangle group and becomes the triangle group. `nodes` is the array
 /// the group's base indexes (NODE, or TLAS at the top level). kOk, or
-/// kStackOverflow / kBadIndex.
+/// kStackOverflow / kBadIndex. The node test: intersect_node_dispatch (the reference
+/// arithmetic unless the ray's set-up enabled the fast test; one_bits: the scene's
+/// NodeScale::one_bits, used only then).
 template <class Stack>
 CWBVH_HD CWBVH_STEP_INLINE TraceStatus cwbvh_node_step(StackEntry& node_group, StackEntry& tri_group, const NodeRay& nray,
                                                   float tmin, float tmax, const CwbvhNode* nodes, uint32_t node_count,
-                                                  Stack& stack, uint32_t& n_nodes) {
+                                                  Stack& stack, uint32_t& n_nodes, uint32_t one_bits = 0x3F800000u) {
     if (node_group.hits <= 0x00FFFFFFu) {
         tri_group = node_group;
         node_group = StackEntry{0u, 0u};
@@ -112,7 +115,7 @@ CWBVH_HD CWBVH_STEP_INLINE TraceStatus cwbvh_node_step(StackEntry& node_group, S
     if (index >= node_count) return TraceStatus::kBadIndex;
     const CwbvhNode& node = nodes[index];
     ++n_nodes;
-    const uint32_t hitmask = intersect_node(node, nray, tmin, tmax);
+    const uint32_t hitmask = intersect_node_dispatch(node, nray, tmin, tmax, one_bits);
     node_group = StackEntry{node.child_base, (hitmask & 0xFF000000u) | node.imask};
     tri_group = StackEntry{node.tri_base, hitmask & 0x00FFFFFFu};
     return TraceStatus::kOk;

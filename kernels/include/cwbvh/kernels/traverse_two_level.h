@@ -40,6 +40,7 @@
 #include "cwbvh/format/hostdevice.h"
 #include "cwbvh/format/transform.h"
 #include "cwbvh/kernels/node_intersect.h"
+#include "cwbvh/kernels/node_intersect_fast.h"
 #include "cwbvh/kernels/ray.h"
 #include "cwbvh/kernels/traverse.h"
 #include "cwbvh/kernels/triangle_intersect.h"
@@ -58,6 +59,10 @@ struct TwoLevelScene {
     uint32_t node_count;
     const TriangleRecord* tris;       ///< TRIS (all bottom levels)
     uint32_t tri_count;
+    /// Constants of the fast node test over NODE and TLAS (node_intersect_fast.h;
+    /// DeviceScene::upload: merge_node_scale of both). NodeScale{} (the default, and the
+    /// CPU reference): the reference node test everywhere.
+    NodeScale node_scale{};
 };
 
 /// The ray in the instance's object space (transform.h; tmin and tmax copied).
@@ -83,7 +88,11 @@ CWBVH_HD CWBVH_INLINE TraceStatus traverse_two_level(const TwoLevelScene& scene,
     if (!ray_is_traceable(ray) || scene.top_node_count == 0) return TraceStatus::kInvalidRay;
     // The current level's set-up: the world ray's at the top level, the object-space
     // ray's inside an instance (recomputed on entry and on return).
+    // The fast node test measures from tmin with its sign bit clear (a -0 tmin is the
+    // same closed interval as +0: cwbvh_lane.h).
+    const float fast_tmin = ray.tmin == 0.0f ? 0.0f : ray.tmin;
     NodeRay nray = make_node_ray(ray);
+    enable_fast_node_test(nray, scene.node_scale, ray.dir, fast_tmin);
     TriangleIntersector<kTest> tri_test(ray);
     const CwbvhNode* nodes = scene.top_nodes;
     uint32_t node_count = scene.top_node_count;
@@ -97,7 +106,8 @@ CWBVH_HD CWBVH_INLINE TraceStatus traverse_two_level(const TwoLevelScene& scene,
     StackEntry node_group{0u, 0x80000000u};
     StackEntry tri_group{0u, 0u};
     for (;;) {
-        status = cwbvh_node_step(node_group, tri_group, nray, tmin, tmax, nodes, node_count, stack, n_nodes);
+        status = cwbvh_node_step(node_group, tri_group, nray, tmin, tmax, nodes, node_count, stack, n_nodes,
+                                 scene.node_scale.one_bits);
         if (status != TraceStatus::kOk) break;
 
         bool done = false;
@@ -119,6 +129,7 @@ CWBVH_HD CWBVH_INLINE TraceStatus traverse_two_level(const TwoLevelScene& scene,
                     break;
                 }
                 nray = make_node_ray(oray);
+                enable_fast_node_test(nray, scene.node_scale, oray.dir, fast_tmin);
                 tri_test = TriangleIntersector<kTest>(oray);
                 nodes = scene.nodes;
                 node_count = scene.node_count;
@@ -154,6 +165,7 @@ CWBVH_HD CWBVH_INLINE TraceStatus traverse_two_level(const TwoLevelScene& scene,
                 // The marker: back to the world ray and the top level. The (empty)
                 // group makes the next iteration pop again.
                 nray = make_node_ray(ray);
+                enable_fast_node_test(nray, scene.node_scale, ray.dir, fast_tmin);
                 nodes = scene.top_nodes;
                 node_count = scene.top_node_count;
                 top = true;
