@@ -71,6 +71,14 @@ namespace {
 /// the same collapse, slots and quantization as a bottom level; INST reordered
 /// into the leaf order. `verify`: every decoded slot box contains its exact
 /// box and every leaf slot every instance world box it holds.
+/// C_prim of the top level's collapse (C_node = 1): entering an instance costs a ray
+/// transform and the mesh's root node, far more than the 0.3 of a triangle test, so
+/// top-level leaves hold fewer instances. CPU trace, catalog views (board, parts; ball,
+/// close), primary and diffuse 1, nodes per ray at C_prim 0.3 / 1 / 3 / 10:
+/// kicad_board 7.32-10.81 / 7.09-10.41 / 7.08-10.41 / 7.08-10.41, dense_dragons
+/// 36.6-60.8 / 35.9-74.1 / 32.0-54.8 / 33.5-60.2 (bench/results/cpu/2026-11-26-two-level).
+constexpr float kTopLevelCostPrim = 3.0f;
+
 Result build_top_level(std::vector<InstanceRecord>& instances, const CoreOptions& options, std::vector<CwbvhNode>& tlas,
                        uint32_t& depth) {
     std::vector<Aabb> boxes(instances.size());
@@ -85,6 +93,7 @@ Result build_top_level(std::vector<InstanceRecord>& instances, const CoreOptions
     if (Result r = build_boxes(boxes, sbvh, binary); !r.ok()) return r;
     CollapseConfig collapse = options.collapse;
     collapse.binary_leaf_refs = false;
+    collapse.cost_prim = kTopLevelCostPrim;
     WideBvh wide;
     if (Result r = collapse_wide(binary, collapse, wide); !r.ok()) return r;
     assign_slots(wide);
