@@ -11,6 +11,8 @@
 
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/gpu_trace.h"
+#include "cwbvh/kernels/ray_gen.h"
+#include "cwbvh/kernels/two_level_file.h"
 #include "cwbvh/loader/loader.h"
 
 int main(int argc, char** argv) {
@@ -32,6 +34,7 @@ int main(int argc, char** argv) {
     }
     if (w <= 0 || h <= 0) return 2;
 
+    // All sections: a two-level file (format 1.2, instanced glTF) needs MESH/INST/TLAS too.
     Expected<File> file = File::open(pos[0]);
     if (!file.ok()) {
         std::fprintf(stderr, "%s\n", file.error().message.c_str());
@@ -71,10 +74,14 @@ int main(int argc, char** argv) {
         }
 
     std::vector<Hit> hits(rays.size());
+    std::vector<uint32_t> instances(rays.size(), kInvalidIndex);  // two-level: the hit's INST index
+    TwoLevelScene scene{};
+    const bool two_level = two_level_scene(*file, scene);
     std::string why;
     if (!force_cpu && gpu_available(why)) {
+        GpuTraceOptions o;
         Expected<GpuTraceResult> traced =
-            trace_on_gpu(*file, rays.data(), hits.data(), rays.size(), false, GpuKernel::kCwbvh);
+            trace_on_gpu(*file, rays.data(), hits.data(), instances.data(), rays.size(), o);
         if (!traced.ok()) {
             std::fprintf(stderr, "GPU trace failed: %s\n", traced.error().message.c_str());
             return 1;
@@ -84,22 +91,24 @@ int main(int argc, char** argv) {
                     res.kernel_ms, res.mrays_per_s);
     } else {
         if (!force_cpu) std::printf("no GPU (%s): tracing on the CPU\n", why.c_str());
-        const CpuTraceStats s = trace_cwbvh_cpu(file->nodes().data(), file->nodes().size(), file->triangles().data(),
-                                                file->triangles().size(), rays.data(), hits.data(), rays.size());
+        const CpuTraceStats s =
+            two_level ? trace_two_level_cpu(scene, rays.data(), hits.data(), instances.data(), rays.size())
+                      : trace_cwbvh_cpu(file->nodes().data(), file->nodes().size(), file->triangles().data(),
+                                        file->triangles().size(), rays.data(), hits.data(), rays.size());
         std::printf("CPU: %zu rays, %.3f s, %.2f Mrays/s\n", rays.size(), s.seconds,
                     s.seconds > 0 ? double(rays.size()) / s.seconds / 1e6 : 0.0);
     }
 
-    std::vector<const TriangleRecord*> by_prim;
-    for (const TriangleRecord& t : file->triangles()) {
-        if (t.prim >= by_prim.size()) by_prim.resize(size_t(t.prim) + 1, nullptr);
-        if (!by_prim[t.prim]) by_prim[t.prim] = &t;
-    }
+    // The hit triangle in world space (a two-level hit's triangle moved by its instance).
+    const PrimTable table(file->triangles().data(), file->triangles().size());
     std::vector<unsigned char> img(size_t(w) * h * 3);
     for (size_t i = 0; i < hits.size(); ++i) {
         float shade = 0.1f;
-        if (hits[i].prim != kMissPrim && hits[i].prim < by_prim.size() && by_prim[hits[i].prim]) {
-            const TriangleRecord& t = *by_prim[hits[i].prim];
+        TriangleRecord t{};
+        const TriangleRecord* found = hits[i].prim == kMissPrim ? nullptr : table.find(hits[i].prim);
+        const bool shaded = found && (!two_level || world_hit_triangle(scene, table, instances[i], hits[i].prim, t));
+        if (found && !two_level) t = *found;
+        if (shaded) {
             float e1[3], e2[3];
             for (int a = 0; a < 3; ++a) {
                 e1[a] = t.v1[a] - t.v0[a];

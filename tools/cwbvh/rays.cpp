@@ -23,7 +23,7 @@
 #include "cwbvh/kernels/view_catalog.h"
 #include "cwbvh/loader/loader.h"
 #include "scene_camera.h"
-#include "two_level.h"
+#include "cwbvh/kernels/two_level_file.h"
 
 namespace cwbvh::tool {
 
@@ -90,7 +90,7 @@ int run_rays(int argc, char** argv) {
     // The catalog is an input too (--views, $CWBVH_VIEWS or the compiled-in one).
     const std::vector<std::string> inputs{path, views_path ? std::string(views_path) : default_view_catalog_path()};
     if (const Result r = check_output_path(out, inputs); !r.ok()) return error(kExitBadInput, r.message.c_str());
-    auto file = File::open(path, {true, trace_mask(kMaskBounds)});
+    auto file = File::open(path, {true, trace_section_mask(kMaskBounds)});
     if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
     Camera cam;
     bool default_cam = false;

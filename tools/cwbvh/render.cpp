@@ -23,7 +23,7 @@
 #include "cwbvh/loader/loader.h"
 #include "png_write.h"
 #include "scene_camera.h"
-#include "two_level.h"
+#include "cwbvh/kernels/two_level_file.h"
 
 namespace cwbvh::tool {
 namespace {
@@ -84,7 +84,7 @@ int run_render(int argc, char** argv) {
     if (!path || !out) return error(kExitUsage, usage);
 
     if (const Result r = check_output_path(out, {path}); !r.ok()) return error(kExitBadInput, r.message.c_str());
-    auto file = File::open(path, {true, trace_mask(kMaskBounds)});
+    auto file = File::open(path, {true, trace_section_mask(kMaskBounds)});
     if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
     const SceneBounds& b = *file->bounds();
     Camera cam;

@@ -20,7 +20,7 @@
 #include "cwbvh/kernels/gpu_trace.h"
 #include "cwbvh/kernels/ray_file.h"
 #include "cwbvh/loader/loader.h"
-#include "two_level.h"
+#include "cwbvh/kernels/two_level_file.h"
 
 namespace cwbvh::tool {
 namespace {
@@ -127,7 +127,7 @@ int run_trace(int argc, char** argv) {
         if (const Result r = check_output_path(hits_path, {path, rays_path}); !r.ok())
             return error(kExitBadInput, r.message.c_str());
     }
-    auto file = File::open(path, {true, trace_mask(req.bvh2 ? kMaskBvh2 : 0u)});
+    auto file = File::open(path, {true, trace_section_mask(req.bvh2 ? kMaskBvh2 : 0u)});
     if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
     const bool two_level = file->is_two_level();
     if (two_level && req.bvh2)
