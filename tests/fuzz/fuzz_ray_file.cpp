@@ -22,5 +22,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     uint32_t flags = 0;
     if (cwbvh::read_hit_file(path, hits, flags).ok() && hits.size() * sizeof(cwbvh::Hit) + 32 != size)
         __builtin_trap();
+    // Hit file 1.1 (20-byte records with the instance) and 1.0, through the reader that
+    // takes both: a 1.0 file leaves the instances empty, a 1.1 file gives one per hit, and
+    // the records cover the file exactly.
+    std::vector<uint32_t> instances;
+    if (cwbvh::read_hit_file(path, hits, instances, flags).ok()) {
+        const size_t record = instances.empty() ? 16 : 20;
+        if ((!instances.empty() && instances.size() != hits.size()) || hits.size() * record + 32 != size)
+            __builtin_trap();
+    }
     return 0;
 }
