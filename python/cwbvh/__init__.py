@@ -6,12 +6,19 @@ validation, no BVH build) and trace rays on the CPU (multi-threaded, GIL release
     scene = cwbvh.open("bunny.cwbvh")
     rays = cwbvh.camera_rays(scene, width=640, height=480)      # (N, 8) float32
     t, u, v, prim = scene.trace(rays)                           # prim == cwbvh.MISS: no hit
+    hits = scene.trace(rays); hits.instance                     # two-level files: INST id per hit
 
 Copies: (N, 8) float32 rays in the ray-file layout (origin, tmin, direction, tmax), C-contiguous,
 are traced in place; origins + directions (N, 3), or strided rays, are packed once into that
 layout (in C++, in parallel, without the GIL). The hits come back as views of one (N, 4) buffer
 (no copy): t float32 (inf for a miss), u, v float32 barycentrics of v1 and v2, prim uint32 (the
 stored triangle id; MISS for a miss).
+
+Two-level files (format 1.2: a glTF whose meshes are placed by several nodes compiles to one by
+default; flatten=True gives the single-level file): one bottom-level tree per distinct mesh, an
+instance table and a top-level tree. open() and trace() take them as they are; each hit then also
+names its instance (Hits.instance, uint32, MISS for a miss), t is in the parameter of the given
+ray, prim is the stored id of the triangle in its mesh (Scene.sources maps it to the glTF source).
 """
 
 import json as _json
@@ -23,10 +30,21 @@ from . import _arrays, _cwbvh
 from ._cwbvh import Error, built_with_cuda, gpu_status
 from .rays import camera_rays, diffuse_rays, pack_rays, read_hits, read_rays, view, views
 
-__all__ = ["compile", "open", "Scene", "Hits", "Error", "MISS", "camera_rays", "diffuse_rays", "pack_rays",
+__all__ = ["compile", "open", "Scene", "Hits", "Error", "MISS", "MESH_DTYPE", "INSTANCE_DTYPE", "camera_rays", "diffuse_rays", "pack_rays",
            "read_rays", "read_hits", "view", "views", "gpu_status", "built_with_cuda"]
 
-MISS = 0xFFFFFFFF  #: prim of a ray that hit nothing
+MISS = 0xFFFFFFFF  #: prim (and instance) of a ray that hit nothing
+
+#: A MESH record of a two-level file (spec 3.9): one bottom level (Scene.meshes()).
+MESH_DTYPE = _np.dtype([("node_first", "<u4"), ("node_count", "<u4"), ("tri_first", "<u4"), ("tri_count", "<u4"),
+                        ("prim_first", "<u4"), ("prim_count", "<u4"), ("lo", "<f4", (3,)), ("hi", "<f4", (3,)),
+                        ("source_mesh", "<u4"), ("reserved", "<u4", (3,))])
+#: An INST record of a two-level file (spec 3.9/3.10): one placement (Scene.instances()); the
+#: transforms are affine 3x4 row-major, x_world = M[:, :3] @ x + M[:, 3].
+INSTANCE_DTYPE = _np.dtype([("object_to_world", "<f4", (3, 4)), ("world_to_object", "<f4", (3, 4)),
+                            ("mesh", "<u4"), ("source_node", "<u4"), ("world_lo", "<f4", (3,)),
+                            ("world_hi", "<f4", (3,))])
+assert MESH_DTYPE.itemsize == 64 and INSTANCE_DTYPE.itemsize == 128
 
 
 def compile(inputs, output, threads=None, progress=None, **options):  # noqa: A001 - the verb is the API
@@ -35,9 +53,13 @@ def compile(inputs, output, threads=None, progress=None, **options):  # noqa: A0
     inputs: a path or a list of paths. threads: worker threads (None: all cores; the file is the
     same for any count). options: cwbvhc's options with '_' for '-': builder ('sbvh' | 'embree'),
     collapse ('optimal' | 'greedy'), split_alpha, max_reference_growth, collapse_cost_prim,
-    keep_sbvh, keep_mesh, verify. progress: optional callable(phase, fraction, seconds), called on
+    keep_sbvh, keep_mesh, verify, flatten. flatten=False (the default, as cwbvhc) keeps glTF
+    instancing (a mesh placed by several nodes): the file is two-level (format 1.2); flatten=True
+    (cwbvhc --flatten) places every instance's triangles in one single-level tree (builder
+    'embree', keep_sbvh and keep_mesh imply it). progress: optional callable(phase, fraction, seconds), called on
     this thread at each phase's start (0.0, None), every 0.2 s while a counted phase runs, and at
-    its end (1.0, seconds). Returns the statistics of `cwbvhc --stats-json` as a dict. Bad input
+    its end (1.0, seconds). Returns the statistics of `cwbvhc --stats-json` as a dict (two_level,
+    meshes, instances, instanced_triangles, ... for a two-level file). Bad input
     raises cwbvh.Error with cwbvhc's one-line message; bad options raise ValueError/TypeError.
     """
     if isinstance(inputs, (str, bytes)) or hasattr(inputs, "__fspath__"):
@@ -53,20 +75,26 @@ def compile(inputs, output, threads=None, progress=None, **options):  # noqa: A0
 
 def open(path, deep=False, verify_checksums=True):  # noqa: A001 - cwbvh.open mirrors the loader
     """Map and validate a .cwbvh file (the loader's checks; deep=True adds `cwbvh validate --deep`'s
-    containment proof). Returns a Scene; an invalid file raises cwbvh.Error with the message
-    `cwbvh validate` prints."""
+    containment proof: D1-D4 per tree and, for a two-level file, D7 over the top level: mesh boxes,
+    instance world boxes, top-level boxes, scene bounds). Single- and two-level files (format 1.2:
+    the MESH, INST and TLAS sections are selected) open alike. Returns a Scene; an invalid file
+    raises cwbvh.Error with the message `cwbvh validate` prints."""
     return Scene(_cwbvh.open(str(path), bool(deep), bool(verify_checksums)))
 
 
 class Hits:
     """What Scene.trace returns: t, u, v, prim (views of `records`, the (N, 4) buffer of Hit
-    records, without a copy) and `stats` (rays, hits, nodes_visited, ..., seconds, zero_copy;
-    CPU only). Unpacks as ``t, u, v, prim = scene.trace(...)``."""
+    records, without a copy), `instance` and `stats` (rays, hits, nodes_visited, ..., seconds,
+    zero_copy; CPU only). Unpacks as ``t, u, v, prim = scene.trace(...)``.
 
-    __slots__ = ("t", "u", "v", "prim", "records", "stats")
+    instance: for a two-level file, the (N,) uint32 INST index of each hit (MISS for a miss;
+    Scene.instances()[i] is its placement); None for a single-level file."""
 
-    def __init__(self, t, u, v, prim, records, stats):
+    __slots__ = ("t", "u", "v", "prim", "records", "stats", "instance")
+
+    def __init__(self, t, u, v, prim, records, stats, instance=None):
         self.t, self.u, self.v, self.prim, self.records, self.stats = t, u, v, prim, records, stats
+        self.instance = instance
 
     def __iter__(self):
         return iter((self.t, self.u, self.v, self.prim))
@@ -119,12 +147,37 @@ class Scene:
 
     @property
     def info(self):
-        """Counts, bounds, build statistics (BILD) and sections of the file, as a dict."""
+        """Counts, bounds, build statistics (BILD) and sections of the file, as a dict.
+        is_two_level; two_level: `cwbvh info --json`'s two-level counts (meshes, instances,
+        top_nodes, distinct_triangles, instanced_triangles: the triangles once every instance is
+        expanded) for a two-level file, None otherwise. triangles: the stored (distinct) ones."""
         return self._handle().info()
+
+    @property
+    def is_two_level(self):
+        """True for a two-level file (format 1.2: meshes placed by instances)."""
+        return self._handle().is_two_level
+
+    def meshes(self):
+        """The bottom levels of a two-level file: (M,) MESH_DTYPE records, read-only, zero-copy
+        (empty for a single-level file). prim_first/prim_count: the mesh's stored triangle ids."""
+        return self._handle().meshes().view(MESH_DTYPE)[:, 0]
+
+    def instances(self):
+        """The placements of a two-level file: (I,) INSTANCE_DTYPE records (object_to_world,
+        world_to_object, mesh, source_node = glTF node, world box), read-only, zero-copy; a hit's
+        Hits.instance indexes it. Empty for a single-level file."""
+        return self._handle().instances().view(INSTANCE_DTYPE)[:, 0]
+
+    def sources(self, prim):
+        """Where stored triangles come from (PMAP): (N, 4) uint32 rows (input file, glTF mesh,
+        glTF primitive, triangle in that primitive) for the ids `prim` (e.g. Hits.prim); rows of
+        MISS for MISS. The same source in a two-level file and its flatten=True twin."""
+        return self._handle().sources(_np.asarray(prim, dtype=_np.uint32).reshape(-1))
 
     def vertices(self):
         """The stored mesh's vertices (V, 3) float32, read-only, zero-copy (files compiled with
-        keep_mesh=True; empty otherwise)."""
+        keep_mesh=True, which implies flatten; empty otherwise)."""
         return self._handle().vertices()
 
     def indices(self):
@@ -141,12 +194,20 @@ class Scene:
         self.close()
 
     def __repr__(self):
-        state = "closed" if self.closed else "%d nodes" % self.info["nodes"]
+        if self.closed:
+            state = "closed"
+        else:
+            info = self.info
+            state = "%d nodes" % info["nodes"]
+            if info["two_level"]:
+                state += ", two-level: %d meshes, %d instances" % (info["two_level"]["meshes"],
+                                                                  info["two_level"]["instances"])
         return "<cwbvh.Scene %r (%s)>" % (self.path, state)
 
     def to_device(self, device=-1):
-        """Upload the traversal sections to the GPU once (device -1: the current one). Raises
-        cwbvh.Error when there is no usable GPU (gpu_status() says why)."""
+        """Upload the traversal sections to the GPU once (device -1: the current one; a two-level
+        file's top level too). Raises cwbvh.Error when there is no usable GPU (gpu_status() says
+        why)."""
         self._handle().to_device(int(device))
         return self
 
@@ -156,7 +217,7 @@ class Scene:
 
     def trace(self, origins, directions=None, tmin=None, tmax=None, any_hit=False, watertight=True, threads=None,
               stream=None):
-        """Trace rays; returns Hits (t, u, v, prim).
+        """Trace rays; returns Hits (t, u, v, prim; and instance for a two-level file).
 
         origins, directions: float32 arrays (N, 3); or origins alone as (N, 8) rays in the
         ray-file layout (origin, tmin, direction, tmax), which carry their own tmin/tmax.
@@ -167,6 +228,9 @@ class Scene:
         traced on the GPU after to_device(), on `stream` (an int handle or a stream object;
         default: the array's CUDA-array-interface stream, else the legacy default stream), and
         the results are device arrays of the caller's library (DeviceArray otherwise).
+        A two-level file runs the two-level traversal (trace_two_level_cpu / trace_two_level) on
+        the same inputs, threads and streams: t is in the parameter of the given ray, prim the
+        stored id of the triangle hit, Hits.instance the INST index of its instance.
         """
         if self._h.closed:
             raise ValueError("%s: the Scene is closed" % self._h.path)
@@ -186,8 +250,10 @@ class Scene:
         o = _arrays.host_array(origins, o_name)
         d = None if packed else _arrays.host_array(directions, "directions")
         stats = {}
-        records = self._h.trace_host(o, d, tmin, tmax, bool(any_hit), bool(watertight), _threads(threads), stats)
-        return Hits(records[:, 0], records[:, 1], records[:, 2], records.view(_np.uint32)[:, 3], records, stats)
+        records, instance = self._h.trace_host(o, d, tmin, tmax, bool(any_hit), bool(watertight), _threads(threads),
+                                               stats)
+        return Hits(records[:, 0], records[:, 1], records[:, 2], records.view(_np.uint32)[:, 3], records, stats,
+                    instance)
 
     def _trace_device(self, reference, o, d, tmin, tmax, any_hit, watertight, stream):
         _arrays.check_device_rays(o, "origins" if d is not None else "rays", 3 if d is not None else 8)
@@ -214,4 +280,8 @@ class Scene:
             return _arrays.like(a, reference)
 
         records = _arrays.like(_arrays.DeviceArray(buf, buf.ptr, (n, 4), (16, 4), "<f4", device, stream), reference)
-        return Hits(column(0, "<f4"), column(4, "<f4"), column(8, "<f4"), column(12, "<u4"), records, {})
+        instance = None
+        if self._h.is_two_level:  # the n INST indices follow the n Hit records (device_trace.cpp)
+            instance = _arrays.like(_arrays.DeviceArray(buf, buf.ptr + 16 * n, (n,), (4,), "<u4", device, stream),
+                                    reference)
+        return Hits(column(0, "<f4"), column(4, "<f4"), column(8, "<f4"), column(12, "<u4"), records, {}, instance)

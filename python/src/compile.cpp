@@ -55,10 +55,12 @@ void apply_options(const py::dict& options, CompileOptions& o) {
             o.keep_mesh = value.cast<bool>();
         } else if (k == "verify") {
             o.verify = value.cast<bool>();
+        } else if (k == "flatten") {
+            o.flatten = value.cast<bool>();
         } else {
             throw py::type_error("compile() got an unexpected option '" + k +
                                  "' (options: builder, collapse, split_alpha, max_reference_growth, "
-                                 "collapse_cost_prim, keep_sbvh, keep_mesh, verify)");
+                                 "collapse_cost_prim, keep_sbvh, keep_mesh, verify, flatten)");
         }
     }
 }

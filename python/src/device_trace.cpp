@@ -2,7 +2,8 @@
 // pointers that __init__.py / _arrays.py took from __cuda_array_interface__ or DLPack, and
 // gpu_status(). Everything is enqueued on the caller's stream (a cudaStream_t handle as an
 // integer; 1 = legacy default, 2 = per-thread default, as in the CUDA array interface): no host
-// round trip, no synchronisation.
+// round trip, no synchronisation. A two-level file (format 1.2) runs trace_two_level, which also
+// writes each hit's INST index (after the Hit records, in the same buffer).
 //
 // Copies on the device: (N, 8) rays with 32-byte rows are traced in place. Strided (N, 8) rays,
 // or origins + directions (N, 3) (any row stride, 4-byte element stride), are packed once into
@@ -100,9 +101,14 @@ std::shared_ptr<DeviceBuffer> trace_device(const SceneHandle& h, uintptr_t org, 
         require_device_pointer(org, scene->device(), dir ? "origins" : "rays");
         if (dir) require_device_pointer(dir, scene->device(), "directions");
         const auto s = reinterpret_cast<cudaStream_t>(stream);
+        // A two-level scene: the n INST indices follow the n Hit records in the same buffer
+        // (byte offset 16 n; __init__.py views them there).
+        const bool two_level = scene->has_two_level();
+        const size_t hit_bytes = n * sizeof(Hit);
+        const size_t bytes = hit_bytes + (two_level ? n * sizeof(uint32_t) : 0);
         void* hits = nullptr;
-        CWBVH_CUDA_CHECK(cudaMalloc(&hits, std::max<size_t>(n, 1) * sizeof(Hit)));
-        auto out = std::make_shared<DeviceBuffer>(hits, n * sizeof(Hit), scene->device());
+        CWBVH_CUDA_CHECK(cudaMalloc(&hits, std::max<size_t>(bytes, sizeof(Hit))));
+        auto out = std::make_shared<DeviceBuffer>(hits, bytes, scene->device());
         if (n == 0) return out;
         const Ray* rays = reinterpret_cast<const Ray*>(org);
         void* scratch = nullptr;
@@ -138,7 +144,13 @@ std::shared_ptr<DeviceBuffer> trace_device(const SceneHandle& h, uintptr_t org, 
         }
         TraceOptions o;
         o.test = watertight ? TriangleTest::kWatertight : TriangleTest::kFast;
-        trace(*scene, rays, static_cast<Hit*>(hits), n, any ? Query::kAny : Query::kClosest, s, o);
+        if (two_level) {
+            trace_two_level(*scene, rays, static_cast<Hit*>(hits),
+                            reinterpret_cast<uint32_t*>(static_cast<char*>(hits) + hit_bytes), n,
+                            any ? Query::kAny : Query::kClosest, s, o);
+        } else {
+            trace(*scene, rays, static_cast<Hit*>(hits), n, any ? Query::kAny : Query::kClosest, s, o);
+        }
         if (scratch) CWBVH_CUDA_CHECK(cudaFreeAsync(scratch, s));
         return out;
     } catch (const CudaError& e) {

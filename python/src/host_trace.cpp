@@ -1,5 +1,6 @@
 // Scene.trace on the CPU: numpy rays in, Hit records out, through trace_cwbvh_cpu (cpu_trace.h),
-// multi-threaded and without the GIL.
+// or trace_two_level_cpu for a two-level file (format 1.2; then also an (N,) uint32 array of the
+// INST index of each hit, kInvalidIndex for a miss), multi-threaded and without the GIL.
 //
 // Copies: an (N, 8) float32 array in the ray-file layout (org, tmin, dir, tmax), C-contiguous and
 // 4-byte aligned, is traced in place (zero-copy). Anything else (origins + directions (N, 3), or
@@ -21,6 +22,7 @@
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/ray_file.h"
 #include "scene.h"
+#include "two_level.h"
 
 namespace cwbvh::python {
 namespace {
@@ -83,7 +85,7 @@ float load(const char* base, py::ssize_t row, py::ssize_t row_stride, py::ssize_
     return v;
 }
 
-py::array trace_host(const SceneHandle& h, const py::array& origins, const py::object& directions, float tmin,
+py::tuple trace_host(const SceneHandle& h, const py::array& origins, const py::object& directions, float tmin,
                      float tmax, bool any, bool watertight, unsigned threads, py::dict stats_out) {
     const std::shared_ptr<const File> file = h.file();  // keeps the mapping for the whole call
     const bool packed_input = directions.is_none();
@@ -101,6 +103,16 @@ py::array trace_host(const SceneHandle& h, const py::array& origins, const py::o
 
     py::array_t<float> hits({py::ssize_t(n), py::ssize_t(4)});
     Hit* out = reinterpret_cast<Hit*>(hits.mutable_data());
+    // A two-level file: trace_two_level_cpu, with the INST index of each hit.
+    TwoLevelScene two;
+    const bool two_level = two_level_scene(*file, two);
+    py::object instances = py::none();
+    uint32_t* inst = nullptr;
+    if (two_level) {
+        py::array_t<uint32_t> a{py::ssize_t(n)};
+        inst = a.mutable_data();
+        instances = a;
+    }
     const bool zero_copy = packed_input && o.strides[1] == 4 && o.strides[0] == py::ssize_t(sizeof(Ray)) &&
                            reinterpret_cast<uintptr_t>(o.ptr) % alignof(Ray) == 0;
     CpuTraceStats s;
@@ -136,9 +148,13 @@ py::array trace_host(const SceneHandle& h, const py::array& origins, const py::o
         opt.mode = any ? HitMode::kAny : HitMode::kClosest;
         opt.test = watertight ? TriangleTest::kWatertight : TriangleTest::kFast;
         opt.threads = threads;
-        const auto nodes = file->nodes();
-        const auto tris = file->triangles();
-        s = trace_cwbvh_cpu(nodes.data(), nodes.size(), tris.data(), tris.size(), rays, out, n, opt);
+        if (two_level) {
+            s = trace_two_level_cpu(two, rays, out, inst, n, opt);
+        } else {
+            const auto nodes = file->nodes();
+            const auto tris = file->triangles();
+            s = trace_cwbvh_cpu(nodes.data(), nodes.size(), tris.data(), tris.size(), rays, out, n, opt);
+        }
     }
     stats_out["rays"] = s.rays;
     stats_out["hits"] = s.hits;
@@ -150,7 +166,7 @@ py::array trace_host(const SceneHandle& h, const py::array& origins, const py::o
     stats_out["seconds"] = s.seconds;
     stats_out["threads"] = threads;
     stats_out["zero_copy"] = zero_copy;
-    return hits;
+    return py::make_tuple(hits, instances);
 }
 
 template <class T>
@@ -173,12 +189,23 @@ void bind_host_trace(py::module_& m) {
         check(read_ray_file(path, rays));
         return records(std::move(rays), 8);
     });
-    m.def("read_hits", [](const std::string& path) {
+    m.def("read_hits", [](const std::string& path, bool with_instances) {
         std::vector<Hit> hits;
         uint32_t flags = 0;
-        check(read_hit_file(path, hits, flags));
-        return py::make_tuple(records(std::move(hits), 4), flags);
-    });
+        if (!with_instances) {
+            check(read_hit_file(path, hits, flags));  // refuses a 1.1 file (instances) by name
+            return py::make_tuple(records(std::move(hits), 4), flags);
+        }
+        std::vector<uint32_t> instances;
+        check(read_hit_file(path, hits, instances, flags));
+        py::object inst = py::none();  // a 1.0 file (no instances)
+        if (!instances.empty()) {
+            py::array_t<uint32_t> a{py::ssize_t(instances.size())};
+            std::memcpy(a.mutable_data(), instances.data(), instances.size() * sizeof(uint32_t));
+            inst = a;
+        }
+        return py::make_tuple(records(std::move(hits), 4), inst, flags);
+    }, py::arg("path"), py::arg("with_instances") = false);
 }
 
 }  // namespace cwbvh::python

@@ -6,6 +6,8 @@
 #include <pybind11/stl.h>
 
 #include <cstring>
+#include <optional>
+#include <span>
 #include <vector>
 
 #include "common.h"
@@ -13,6 +15,7 @@
 #include "cwbvh/kernels/ray_gen.h"
 #include "cwbvh/kernels/view_catalog.h"
 #include "scene.h"
+#include "two_level.h"
 
 namespace cwbvh::python {
 
@@ -98,7 +101,50 @@ py::dict info(const SceneHandle& h) {
         sections.append(py::make_tuple(std::string(tag), s.size));
     }
     d["sections"] = sections;
+    // Two-level files (format 1.2): the counts of `cwbvh info --json`'s "two_level" object;
+    // None for a single-level file.
+    d["is_two_level"] = f->is_two_level();
+    if (f->is_two_level()) {
+        py::dict t;
+        t["meshes"] = f->meshes().size();
+        t["instances"] = f->instances().size();
+        t["top_nodes"] = f->top_nodes().size();
+        t["distinct_triangles"] = f->stored_triangle_count();
+        t["instanced_triangles"] = f->instanced_triangle_count();
+        d["two_level"] = t;
+    } else {
+        d["two_level"] = py::none();
+    }
     return d;
+}
+
+/// Read-only (count, record size) uint8 view of a section's records (Python views it with the
+/// record's numpy dtype).
+template <class T>
+py::array record_bytes(const std::shared_ptr<const File>& file, std::span<const T> records) {
+    return file_view(file, reinterpret_cast<const uint8_t*>(records.data()), records.size(), sizeof(T));
+}
+
+/// PMAP's source of each stored triangle id: (N, 4) uint32 (input, mesh, primitive, triangle);
+/// a row of kInvalidIndex for MISS or an id no range holds.
+py::array sources(const SceneHandle& h, py::array_t<uint32_t, py::array::c_style | py::array::forcecast> prims) {
+    const auto f = h.file();
+    if (prims.ndim() != 1) throw py::value_error("sources: prim must be a 1-D array of stored triangle ids");
+    const size_t n = size_t(prims.shape(0));
+    py::array_t<uint32_t> out({py::ssize_t(n), py::ssize_t(4)});
+    const uint32_t* in = prims.data();
+    uint32_t* o = out.mutable_data();
+    {
+        py::gil_scoped_release release;
+        for (size_t i = 0; i < n; ++i) {
+            const std::optional<SourceRef> s = in[i] == kInvalidIndex ? std::nullopt : f->source_of(in[i]);
+            o[4 * i + 0] = s ? s->input : kInvalidIndex;
+            o[4 * i + 1] = s ? s->mesh : kInvalidIndex;
+            o[4 * i + 2] = s ? s->primitive : kInvalidIndex;
+            o[4 * i + 3] = s ? s->triangle : kInvalidIndex;
+        }
+    }
+    return out;
 }
 
 std::shared_ptr<SceneHandle> open_scene(const std::string& path, bool deep, bool verify_checksums) {
@@ -114,7 +160,13 @@ std::shared_ptr<SceneHandle> open_scene(const std::string& path, bool deep, bool
             throw ResultError(std::move(r));
         }
         if (deep) {
-            Result r = deep_check(f->nodes(), f->triangles(), f->stored_triangle_count());
+            // `cwbvh validate --deep`: D1-D4 (per mesh in a two-level file), then D7 over the
+            // top level (mesh boxes, instance world boxes, TLAS boxes, BNDS).
+            DeepCheckStats st;
+            Result r = deep_check(f->nodes(), f->triangles(), f->stored_triangle_count(), &st);
+            if (r.ok() && f->is_two_level())
+                r = deep_check_two_level(f->triangles(),
+                                         TwoLevelView{f->meshes(), f->instances(), f->top_nodes(), f->bounds()}, &st);
             if (!r.ok()) {
                 r.message = path + ": " + r.describe();
                 throw ResultError(std::move(r));
@@ -202,6 +254,16 @@ void bind_scene(py::module_& m) {
             const auto f = h.file();
             return file_view(f, f->indices().data(), f->indices().size() / 3, 3);
         })
+        .def_property_readonly("is_two_level", [](const SceneHandle& h) { return h.file()->is_two_level(); })
+        .def("meshes", [](const SceneHandle& h) {
+            const auto f = h.file();
+            return record_bytes(f, f->meshes());
+        })
+        .def("instances", [](const SceneHandle& h) {
+            const auto f = h.file();
+            return record_bytes(f, f->instances());
+        })
+        .def("sources", &sources, py::arg("prim"))
         .def("views", [](const SceneHandle& h, const std::string& scene, const std::string& catalog) {
             const auto f = h.file();
             CatalogLoad loaded = CatalogLoad::kError;
@@ -239,7 +301,12 @@ void bind_scene(py::module_& m) {
                  DiffuseRays d;
                  {
                      py::gil_scoped_release release;
-                     d = diffuse_rays(n.data(), n.size(), t.data(), t.size(), in, bounce, seed, threads);
+                     // A two-level scene bounces off the world-space triangle of each hit, as
+                     // `cwbvh rays --diffuse` does.
+                     TwoLevelScene two;
+                     d = two_level_scene(*f, two) ? diffuse_rays(two, in, bounce, seed, threads)
+                                                  : diffuse_rays(n.data(), n.size(), t.data(), t.size(), in, bounce,
+                                                                 seed, threads);
                  }
                  py::array_t<uint32_t> path(py::ssize_t(d.path.size()));
                  std::memcpy(path.mutable_data(), d.path.data(), d.path.size() * sizeof(uint32_t));
