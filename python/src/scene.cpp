@@ -203,7 +203,8 @@ py::dict view_dict(const View& v) {
 View pick_view(const File& f, const std::string& scene, const std::string& which, const std::string& catalog) {
     CatalogLoad loaded = CatalogLoad::kError;
     const ViewCatalog c = load_catalog(catalog, loaded);
-    if (loaded == CatalogLoad::kLoaded && !which.empty()) {
+    // A scene the catalog does not list has one view, "default" (what views() lists for it).
+    if (loaded == CatalogLoad::kLoaded && !which.empty() && !(which == "default" && c.views_of(scene).empty())) {
         View v;
         const Result r = c.find(scene, which, v);
         if (!r.ok()) throw py::value_error(r.message);

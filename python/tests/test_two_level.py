@@ -407,6 +407,23 @@ def test_diffuse_rays_bounce_off_world_triangles(instanced_files):
         assert both.mean() > 0.99
 
 
+def test_rays_bit_identical_to_cwbvh_rays(instanced_files, tmp_path):
+    """camera_rays and diffuse_rays on a two-level file are `cwbvh rays`'s to the bit (the scene
+    is not in the view catalog: its one view is "default", by name too)."""
+    _, two_path, _, _, _ = instanced_files
+    with cwbvh.open(two_path) as two:
+        assert [v["name"] for v in cwbvh.views(two)] == ["default"]
+        primary = cwbvh.camera_rays(two, width=64, height=64)
+        assert np.array_equal(cwbvh.camera_rays(two, view="default", width=64, height=64), primary)
+        with pytest.raises(ValueError, match="no views"):
+            cwbvh.camera_rays(two, view="front", width=4, height=4)
+        diffuse, _ = cwbvh.diffuse_rays(two, primary)
+        for kind, ours in (("primary", primary), ("diffuse", diffuse)):
+            out = tmp_path / kind
+            run(tool("cwbvh"), "rays", two_path, "--" + kind, "--width", 64, "--height", 64, "-o", out)
+            assert np.array_equal(cwbvh.read_rays(out).view(np.uint32), ours.view(np.uint32))
+
+
 def test_read_hits_with_instances(instanced_files, tmp_path):
     _, two_path, _, _, _ = instanced_files
     with cwbvh.open(two_path) as two:
