@@ -21,8 +21,8 @@
 #include "common.h"
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/ray_file.h"
+#include "cwbvh/kernels/two_level_file.h"
 #include "scene.h"
-#include "two_level.h"
 
 namespace cwbvh::python {
 namespace {

@@ -13,9 +13,9 @@
 #include "common.h"
 #include "cwbvh/format/deep_check.h"
 #include "cwbvh/kernels/ray_gen.h"
+#include "cwbvh/kernels/two_level_file.h"
 #include "cwbvh/kernels/view_catalog.h"
 #include "scene.h"
-#include "two_level.h"
 
 namespace cwbvh::python {
 
