@@ -418,7 +418,7 @@ void print_two_level_table(const std::vector<Row>& rows) {
                 "hits not bit for bit those of trace_two_level_cpu (a failure);\n"
                 "disagr: rays whose two-level hit disagrees with the flattened file's (%s): hit/miss (h/m), t beyond "
                 "1e-5 relative (t), another source triangle at a t not close (src);\n"
-                "counted apart, accepted: edge (hit vs miss within 1e-5 of a triangle edge), round (t beyond 1e-5 "
+                "counted apart, accepted: edge (hit vs miss, or another triangle farther away, the nearer hit within 1e-5 of an edge), round (t beyond 1e-5 "
                 "but within 16 u of the scene extent along the normal), ties (another source at a close t)\n",
                 gpu ? "GPU kernels' hits" : "CPU references");
 }
@@ -1009,6 +1009,25 @@ int main(int argc, char** argv) {
                                                                            double(n[2]) * rays[i].dir[2]);
                                                       });
                     };
+                    // The first ray of a two-level vs flattened disagreement, for the log.
+                    auto first_disagreement = [&](const FlatCompare& c, const std::vector<Hit>& two,
+                                                  const std::vector<uint32_t>& inst, const std::vector<Hit>& flat) {
+                        if (c.first_bad < 0) return;
+                        const size_t i = size_t(c.first_bad);
+                        auto src = [](const std::vector<SourceRange>& pm, uint32_t prim) {
+                            const auto r = prim == kMissPrim ? std::nullopt : find_source(pm, prim);
+                            char b[64];
+                            if (r) std::snprintf(b, sizeof b, "%u/%u/%u/%u", r->input, r->mesh, r->primitive,
+                                                 r->triangle);
+                            else std::snprintf(b, sizeof b, "-");
+                            return std::string(b);
+                        };
+                        std::printf("    first disagreement: ray %zu: two-level inst %u prim %u (source %s) t %.9g u %.6g "
+                                    "v %.6g; flattened prim %u (source %s) t %.9g u %.6g v %.6g\n",
+                                    i, inst[i], two[i].prim, src(s.two->pmap, two[i].prim).c_str(), double(two[i].t),
+                                    double(two[i].u), double(two[i].v), flat[i].prim, src(s.pmap, flat[i].prim).c_str(),
+                                    double(flat[i].t), double(flat[i].u), double(flat[i].v));
+                    };
                     for (int any = 0; any < 2; ++any) {
                         Row r;
                         r.scene = s.name;
@@ -1028,6 +1047,8 @@ int main(int argc, char** argv) {
                             if (!have_gpu || rays.empty()) {  // the CPU references (no GPU, or --cpu-only)
                                 r.tl.flat = flat_compare(any ? ref2_any : ref2, any ? ref_any : ref, any != 0);
                                 two_level_line(r);
+                                first_disagreement(r.tl.flat, any ? ref2_any : ref2, any ? inst2_any : inst2,
+                                                   any ? ref_any : ref);
                             }
                         }
                         rows.push_back(r);
@@ -1122,10 +1143,11 @@ int main(int argc, char** argv) {
                                 kr.tris_per_ray = double(st.triangles_tested) / double(rays.size());
                                 kr.overflows = st.stack_overflows;
                                 kr.bad_indices = st.bad_indices;
-                                r.tl.flat = flat_compare(hits, cw_hits.empty() ? (any ? ref_any : ref) : cw_hits,
-                                                         any != 0);
+                                const std::vector<Hit>& flat_hits = cw_hits.empty() ? (any ? ref_any : ref) : cw_hits;
+                                r.tl.flat = flat_compare(hits, flat_hits, any != 0);
                                 r.tl.flat_gpu = !cw_hits.empty();
                                 two_level_line(r);
+                                first_disagreement(r.tl.flat, hits, inst, flat_hits);
                                 if (kr.mismatches || st.bad_indices) {
                                     failed = true;
                                     if (st.bad_indices)
