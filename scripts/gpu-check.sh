@@ -18,6 +18,15 @@
 # (scripts/make-derived-composite.py) and compiled and checked last. Compiled scenes of
 # the earlier layout (gpu_inputs/NAME.cwbvh.xz) are still unpacked and checked.
 #
+# Two-level scenes (issue 19): a GLB whose glTF instances a mesh (one mesh named by
+# several nodes: kicad_board, dense_dragons and the DERIVED composite of the GPU set) is
+# compiled a second time without flags, which keeps the instancing (format 1.2,
+# SCENES/instanced/NAME.cwbvh; its wall time is printed and goes to the compile times as
+# "instanced:NAME"). cwbvh_gpu_check pairs it with the flattened file of the same stem:
+# the two-level kernel traces the flattened file's rays, is checked bit for bit against
+# trace_two_level_cpu, its hits are compared with the flattened file's, and its speed
+# is printed beside the flattened file's CWBVH kernel (geometric mean, target 0.8x).
+#
 # Rays come from the view catalog (views/catalog.txt: every view of each scene, inside the
 # enclosed ones; scene key = the .cwbvh file's stem), 2048x2048, primary + diffuse bounces 1-4.
 # Ray sets of fewer than 1M rays are printed but kept out of the geometric means.
@@ -32,6 +41,11 @@
 #        CSV=path of the results table (default $BUILD/gpu_check.csv; commit a copy under
 #        bench/results/gpu/ with the command and the device)
 #        COMPILE_THREADS=N cwbvhc threads (default: nproc)
+#        TWO_LEVEL=auto (default: every GLB that instances a mesh) | none | "NAME ..." (scene
+#        stems, e.g. "kicad_board dense_dragons"): the scenes also compiled two-level
+#        DRY_RUN=1: build nothing and run no check; unpack the bundle and the scenes and
+#        compile them (flattened and two-level) as the check would, print the compile
+#        lines and the compile times, then exit 0 (runs without a GPU)
 #        OPTIX_INCLUDE_DIR=OptiX 9.0 headers (default gpu_inputs/optix/include); none: OptiX
 #        is skipped with one line (as it is where libnvoptix is missing)
 #        CWBVH_SANITIZE_GPU=0 skips the compute-sanitizer memcheck + racecheck pass (run last,
@@ -62,6 +76,11 @@ else  # cwbvh_gpu_check then says, in one line, that OptiX was skipped
   arch_args+=(-DCWBVH_OPTIX_INCLUDE_DIR=)
   targets=(cwbvh_gpu_check cwbvh)
 fi
+dry_run=${DRY_RUN:-0}
+if [[ "$dry_run" == "1" ]]; then
+  mkdir -p "$build"
+  echo "gpu-check: DRY_RUN=1: no build, no check: the scene compiles only"
+else
 cmake -S "$root" -B "$build" "${gen[@]}" -DCMAKE_BUILD_TYPE=Release -DCWBVH_BUILD_COMPILER=OFF \
   -DCWBVH_BUILD_TESTS=OFF -DCWBVH_CUDA=ON -DCMAKE_CUDA_COMPILER="$nvcc" \
   -DCWBVH_XXHASH_INCLUDE_DIR="$xx" "${arch_args[@]}" > "$build.configure.log" 2>&1 ||
@@ -69,9 +88,10 @@ cmake -S "$root" -B "$build" "${gen[@]}" -DCMAKE_BUILD_TYPE=Release -DCWBVH_BUIL
 cmake --build "$build" -j "$(nproc)" --target "${targets[@]}" > "$build.build.log" 2>&1 ||
   { tail -40 "$build.build.log"; exit 2; }
 tail -2 "$build.build.log"
+fi
 
 # ptxas report for this device's architecture (compile only; next to the committed ones).
-if [[ -n "$cc" ]]; then
+if [[ -n "$cc" && "$dry_run" != "1" ]]; then
   mkdir -p "$root/bench/results"
   cus=("$root"/kernels/src/kernels_*.cu)
   [[ -e "${cus[0]}" ]] || cus=("$root/kernels/src/trace.cu")
@@ -100,6 +120,27 @@ scenes=()
 for f in "$inputs"/*.cwbvh; do
   [[ -e "$f" ]] && scenes+=("$f")
 done
+
+# True when a GLB instances: a mesh named by several nodes, or a node placed under several
+# parents (what cwbvhc keeps as instances by default; its stats JSON confirms it after).
+instances_a_mesh() {  # FILE.glb
+  [[ "$1" == *.glb ]] || return 1
+  python3 - "$1" <<'PY'
+import collections, json, struct, sys
+with open(sys.argv[1], "rb") as f:
+    head = f.read(20)
+    if len(head) < 20 or head[:4] != b"glTF":
+        sys.exit(1)
+    n, kind = struct.unpack_from("<II", head, 12)
+    if kind != 0x4E4F534A:  # JSON
+        sys.exit(1)
+    g = json.loads(f.read(n))
+nodes = g.get("nodes", [])
+meshes = collections.Counter(nd["mesh"] for nd in nodes if "mesh" in nd)
+parents = collections.Counter(c for nd in nodes for c in nd.get("children", []))
+sys.exit(0 if any(v > 1 for v in meshes.values()) or any(v > 1 for v in parents.values()) else 1)
+PY
+}
 
 # Scene sources: unpack, generate the DERIVED composite, compile with the bundled cwbvhc.
 times_file="$build/compile_times.txt"
@@ -130,6 +171,9 @@ tarfile.open(sys.argv[1], "r:xz").extractall(sys.argv[2], **kw)' \
     sources+=(derived_board_dragons.glb)
   fi
   threads=${COMPILE_THREADS:-$(nproc)}
+  two_level=${TWO_LEVEL:-auto}
+  rm -rf "$work/instanced"
+  mkdir -p "$work/instanced"
   for s in "${sources[@]}"; do
     name=${s%.*}
     t0=$(date +%s.%N)
@@ -144,7 +188,37 @@ tarfile.open(sys.argv[1], "r:xz").extractall(sys.argv[2], **kw)' \
     echo "$name $secs" >> "$times_file"
     echo "compile $name: $secs s at $threads threads ($(( $(stat -c %s "$work/$name.cwbvh") >> 20 )) MiB)"
     scenes+=("$work/$name.cwbvh")
+    # The two-level file of a scene that instances (no flags: cwbvhc keeps the instancing).
+    case "$two_level" in
+      none) continue ;;
+      auto) instances_a_mesh "$work/$s" || continue ;;
+      *) [[ " $two_level " == *" $name "* ]] || continue ;;
+    esac
+    inst="$work/instanced/$name.cwbvh"
+    t0=$(date +%s.%N)
+    if ! "$bundle/cwbvhc" "$work/$s" -o "$inst" --threads "$threads" --quiet \
+         --stats-json "$work/instanced/$name.stats.json" > "$work/instanced/$name.compile.log" 2>&1; then
+      cat "$work/instanced/$name.compile.log"
+      echo "gpu-check: FAIL: cwbvhc could not compile $s with its instancing" >&2
+      exit 2
+    fi
+    t1=$(date +%s.%N)
+    if ! grep -q '"two_level": true' "$work/instanced/$name.stats.json"; then
+      echo "compile $name (two-level): cwbvhc kept no instancing: no two-level check for $name"
+      rm -f "$inst"
+      continue
+    fi
+    secs2=$(awk -v a="$t0" -v b="$t1" 'BEGIN {printf "%.2f", b - a}')
+    echo "instanced:$name $secs2" >> "$times_file"
+    echo "compile $name (two-level): $secs2 s at $threads threads ($(( $(stat -c %s "$inst") >> 10 )) KiB;" \
+      "flattened: $secs s, $(( $(stat -c %s "$work/$name.cwbvh") >> 10 )) KiB)"
+    scenes+=("$inst")
   done
+fi
+if [[ "$dry_run" == "1" ]]; then
+  echo "gpu-check: DRY_RUN=1: compiled ${#scenes[@]} file(s); compile times ($times_file):"
+  cat "$times_file"
+  exit 0
 fi
 csv=${CSV:-$build/gpu_check.csv}
 log="$build/gpu_check.log"
