@@ -49,8 +49,9 @@
 #        OPTIX_INCLUDE_DIR=OptiX 9.0 headers (default gpu_inputs/optix/include); none: OptiX
 #        is skipped with one line (as it is where libnvoptix is missing)
 #        CWBVH_SANITIZE_GPU=0 skips the compute-sanitizer memcheck + racecheck pass (run last,
-#        64x64 rays on the bunny or the synthetic scene, CWBVH and BVH2 kernels; any report
-#        fails the check)
+#        64x64 rays on the bunny or the synthetic scene, CWBVH and BVH2 kernels, and on
+#        dense_dragons flattened + two-level where compiled: the two-level kernel; any
+#        report fails the check)
 # exit:  0 only when cwbvh_gpu_check printed "RESULT: PASS". 1 a mismatch (or no PASS line);
 #        2 a build, usage, compile or CUDA error, or "SKIPPED" although nvidia-smi lists a GPU
 #        (the kernels did not run where they should); 3 no GPU on this machine (nothing checked).
@@ -250,8 +251,12 @@ if [[ "${CWBVH_SANITIZE_GPU:-1}" == "1" ]]; then
   if [[ -x "$sanitizer" ]]; then
     small=()
     for s in "${scenes[@]}"; do
-      [[ "$(basename "$s")" == bunny* ]] && small=("$s")
+      [[ "$(basename "$s")" == bunny* ]] && small+=("$s")
     done
+    # The two-level kernel too: dense_dragons' two files (the smallest instanced pair).
+    if [[ -f "$build/scenes/instanced/dense_dragons.cwbvh" ]]; then
+      small+=("$build/scenes/dense_dragons.cwbvh" "$build/scenes/instanced/dense_dragons.cwbvh")
+    fi
     for tool in memcheck racecheck; do
       # --no-optix: the sanitizer checks our kernels, not OptiX's internals.
       if ! "$sanitizer" --tool "$tool" --error-exitcode 9 "$build/bin/cwbvh_gpu_check" --width 64 --height 64 \
