@@ -30,7 +30,7 @@
 # Rays come from the view catalog (views/catalog.txt: every view of each scene, inside the
 # enclosed ones; scene key = the .cwbvh file's stem), 2048x2048, primary + diffuse bounces 1-4.
 # Ray sets of fewer than 1M rays are printed but kept out of the geometric means.
-# Time on the 16-core GPU machine, all nine scenes: 4-5 minutes expected (build, compile,
+# Time on the 16-core GPU machine, all nine scenes: about 6 minutes expected (build, compile,
 # CPU reference, --repeat 3 on the three kernels, sanitizer; estimated from the CPU side
 # here, bench/README.md, "GPU: the three-way benchmark"): every scene keeps 2048x2048.
 #
