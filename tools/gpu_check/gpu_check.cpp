@@ -357,7 +357,8 @@ void print_scene_table(const std::vector<Scene>& scenes) {
                                   t.meshes.size() * sizeof(MeshRecord) + t.nodes.size() * sizeof(CwbvhNode) +
                                   t.tris.size() * sizeof(TriangleRecord));
         std::printf("%s two-level: %zu meshes placed %zu times, %llu distinct / %llu instanced triangles; file %.2f "
-                    "MiB = %.3fx the flattened file (as given: gpu-check.sh compiles it with --keep-sbvh, BVH2 included); compile %s; device %.1f MiB (flattened CWBVH %.1f)\n",
+                    "MiB = %.3fx the flattened file (as given: gpu-check.sh compiles it with --keep-sbvh, BVH2 "
+                    "included); compile %s; device %.1f MiB (flattened CWBVH %.1f)\n",
                     s.name.c_str(), t.meshes.size(), t.inst.size(), (unsigned long long)t.triangles,
                     (unsigned long long)t.instanced_triangles, double(t.file_bytes) / 1048576.0,
                     double(t.file_bytes) / double(std::max<uint64_t>(s.file_bytes, 1)),
@@ -418,8 +419,9 @@ void print_two_level_table(const std::vector<Row>& rows) {
                 "hits not bit for bit those of trace_two_level_cpu (a failure);\n"
                 "disagr: rays whose two-level hit disagrees with the flattened file's (%s): hit/miss (h/m), t beyond "
                 "1e-5 relative (t), another source triangle at a t not close (src);\n"
-                "counted apart, accepted: edge (hit vs miss, or another triangle farther away, the nearer hit within 1e-5 of an edge), round (t beyond 1e-5 "
-                "but within 16 u of the scene extent along the normal), ties (another source at a close t)\n",
+                "counted apart, accepted: edge (hit vs miss, or another triangle farther away, the nearer hit within "
+                "1e-5 of an edge), round (t beyond 1e-5 but within 16 u of the scene extent along the normal), ties "
+                "(another source at a close t)\n",
                 gpu ? "GPU kernels' hits" : "CPU references");
 }
 
@@ -991,7 +993,8 @@ int main(int argc, char** argv) {
                         if (r.tl.k.ran)
                             std::printf("  2L %-7s %8.1f Mrays/s, flattened CWBVH %8s: %s; %llu not bit for bit; vs "
                                         "flattened (GPU): %s\n",
-                                        r.query.c_str(), r.tl.k.mrays, fmt(r.k[kCw].ran, "%.1f", r.k[kCw].mrays).c_str(),
+                                        r.query.c_str(), r.tl.k.mrays,
+                                        fmt(r.k[kCw].ran, "%.1f", r.k[kCw].mrays).c_str(),
                                         fmt(r.tl_ratio() > 0, "%.2fx", r.tl_ratio()).c_str(),
                                         (unsigned long long)r.tl.k.mismatches, describe(r.tl.flat, any).c_str());
                         else
@@ -1022,8 +1025,8 @@ int main(int argc, char** argv) {
                             else std::snprintf(b, sizeof b, "-");
                             return std::string(b);
                         };
-                        std::printf("    first disagreement: ray %zu: two-level inst %u prim %u (source %s) t %.9g u %.6g "
-                                    "v %.6g; flattened prim %u (source %s) t %.9g u %.6g v %.6g\n",
+                        std::printf("    first disagreement: ray %zu: two-level inst %u prim %u (source %s) t %.9g "
+                                    "u %.6g v %.6g; flattened prim %u (source %s) t %.9g u %.6g v %.6g\n",
                                     i, inst[i], two[i].prim, src(s.two->pmap, two[i].prim).c_str(), double(two[i].t),
                                     double(two[i].u), double(two[i].v), flat[i].prim, src(s.pmap, flat[i].prim).c_str(),
                                     double(flat[i].t), double(flat[i].u), double(flat[i].v));
