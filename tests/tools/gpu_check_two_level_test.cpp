@@ -6,7 +6,9 @@
 //  - the tool itself with --cpu-only on dense_dragons compiled both ways by cwbvhc
 //    (ray generation, trace_two_level_cpu, the comparison, the two-level table and CSV,
 //    the scene table's instanced columns), a flattened file of another scene under the
-//    same key (the comparison must report disagreements), and the usage errors.
+//    same key (the comparison must report disagreements), and the usage errors;
+//  - without --cpu-only: "SKIPPED" with no device (as before), and with one the
+//    two-level kernel on 32x32 rays, bit for bit with trace_two_level_cpu.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
@@ -263,6 +265,21 @@ TEST_F(GpuCheckTool, ComparesTheInstancedFileWithTheFlattenedOnTheSameRays) {
     ASSERT_TRUE(fs::exists(csv2));
     EXPECT_EQ(count_lines(csv2), 1u + 2 * 5 * 2);
     EXPECT_EQ(count_lines(csv.string()), 1u + 2 * 5 * 2);
+}
+
+TEST_F(GpuCheckTool, WithoutCpuOnlySkipsWithoutADeviceAndPassesWithOne) {
+    // No device: the existing "SKIPPED" (exit 0) before any scene is read. A device:
+    // the two-level kernel on 32x32 rays, bit for bit with trace_two_level_cpu.
+    CWBVH_REQUIRE_SCENE(corpus_scene("dense_dragons.glb"));
+    const std::string flat = compile("dense_dragons.glb", "--flatten", dir_ / "flat" / "dense_dragons.cwbvh");
+    const std::string two = compile("dense_dragons.glb", "", dir_ / "instanced" / "dense_dragons.cwbvh");
+    const ToolRun r = run_tool("--width 32 --height 32 --repeat 1 --no-optix \"" + flat + "\" \"" + two + "\"");
+    ASSERT_EQ(r.rc, 0) << r.out;
+    if (r.out.rfind("SKIPPED: no CUDA device", 0) == 0) return;
+    EXPECT_NE(r.out.find("RESULT: PASS"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("2L closest"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("two-level kernel vs trace_two_level_cpu: 0 rays not bit for bit"), std::string::npos)
+        << r.out;
 }
 
 TEST_F(GpuCheckTool, AnotherScenesFlattenedFileDisagrees) {
