@@ -18,10 +18,19 @@
 # (scripts/make-derived-composite.py) and compiled and checked last. Compiled scenes of
 # the earlier layout (gpu_inputs/NAME.cwbvh.xz) are still unpacked and checked.
 #
+# Two-level scenes (issue 19): a GLB whose glTF instances a mesh (one mesh named by
+# several nodes: kicad_board, dense_dragons and the DERIVED composite of the GPU set) is
+# compiled a second time without flags, which keeps the instancing (format 1.2,
+# SCENES/instanced/NAME.cwbvh; its wall time is printed and goes to the compile times as
+# "instanced:NAME"). cwbvh_gpu_check pairs it with the flattened file of the same stem:
+# the two-level kernel traces the flattened file's rays, is checked bit for bit against
+# trace_two_level_cpu, its hits are compared with the flattened file's, and its speed
+# is printed beside the flattened file's CWBVH kernel (geometric mean, target 0.8x).
+#
 # Rays come from the view catalog (views/catalog.txt: every view of each scene, inside the
 # enclosed ones; scene key = the .cwbvh file's stem), 2048x2048, primary + diffuse bounces 1-4.
 # Ray sets of fewer than 1M rays are printed but kept out of the geometric means.
-# Time on the 16-core GPU machine, all nine scenes: 4-5 minutes expected (build, compile,
+# Time on the 16-core GPU machine, all nine scenes: about 6 minutes expected (build, compile,
 # CPU reference, --repeat 3 on the three kernels, sanitizer; estimated from the CPU side
 # here, bench/README.md, "GPU: the three-way benchmark"): every scene keeps 2048x2048.
 #
@@ -32,11 +41,17 @@
 #        CSV=path of the results table (default $BUILD/gpu_check.csv; commit a copy under
 #        bench/results/gpu/ with the command and the device)
 #        COMPILE_THREADS=N cwbvhc threads (default: nproc)
+#        TWO_LEVEL=auto (default: every GLB that instances a mesh) | none | "NAME ..." (scene
+#        stems, e.g. "kicad_board dense_dragons"): the scenes also compiled two-level
+#        DRY_RUN=1: build nothing and run no check; unpack the bundle and the scenes and
+#        compile them (flattened and two-level) as the check would, print the compile
+#        lines and the compile times, then exit 0 (runs without a GPU)
 #        OPTIX_INCLUDE_DIR=OptiX 9.0 headers (default gpu_inputs/optix/include); none: OptiX
 #        is skipped with one line (as it is where libnvoptix is missing)
 #        CWBVH_SANITIZE_GPU=0 skips the compute-sanitizer memcheck + racecheck pass (run last,
-#        64x64 rays on the bunny or the synthetic scene, CWBVH and BVH2 kernels; any report
-#        fails the check)
+#        64x64 rays on the bunny or the synthetic scene, CWBVH and BVH2 kernels, and on
+#        dense_dragons flattened + two-level where compiled: the two-level kernel; any
+#        report fails the check)
 # exit:  0 only when cwbvh_gpu_check printed "RESULT: PASS". 1 a mismatch (or no PASS line);
 #        2 a build, usage, compile or CUDA error, or "SKIPPED" although nvidia-smi lists a GPU
 #        (the kernels did not run where they should); 3 no GPU on this machine (nothing checked).
@@ -62,6 +77,11 @@ else  # cwbvh_gpu_check then says, in one line, that OptiX was skipped
   arch_args+=(-DCWBVH_OPTIX_INCLUDE_DIR=)
   targets=(cwbvh_gpu_check cwbvh)
 fi
+dry_run=${DRY_RUN:-0}
+if [[ "$dry_run" == "1" ]]; then
+  mkdir -p "$build"
+  echo "gpu-check: DRY_RUN=1: no build, no check: the scene compiles only"
+else
 cmake -S "$root" -B "$build" "${gen[@]}" -DCMAKE_BUILD_TYPE=Release -DCWBVH_BUILD_COMPILER=OFF \
   -DCWBVH_BUILD_TESTS=OFF -DCWBVH_CUDA=ON -DCMAKE_CUDA_COMPILER="$nvcc" \
   -DCWBVH_XXHASH_INCLUDE_DIR="$xx" "${arch_args[@]}" > "$build.configure.log" 2>&1 ||
@@ -69,9 +89,10 @@ cmake -S "$root" -B "$build" "${gen[@]}" -DCMAKE_BUILD_TYPE=Release -DCWBVH_BUIL
 cmake --build "$build" -j "$(nproc)" --target "${targets[@]}" > "$build.build.log" 2>&1 ||
   { tail -40 "$build.build.log"; exit 2; }
 tail -2 "$build.build.log"
+fi
 
 # ptxas report for this device's architecture (compile only; next to the committed ones).
-if [[ -n "$cc" ]]; then
+if [[ -n "$cc" && "$dry_run" != "1" ]]; then
   mkdir -p "$root/bench/results"
   cus=("$root"/kernels/src/kernels_*.cu)
   [[ -e "${cus[0]}" ]] || cus=("$root/kernels/src/trace.cu")
@@ -100,6 +121,27 @@ scenes=()
 for f in "$inputs"/*.cwbvh; do
   [[ -e "$f" ]] && scenes+=("$f")
 done
+
+# True when a GLB instances: a mesh named by several nodes, or a node placed under several
+# parents (what cwbvhc keeps as instances by default; its stats JSON confirms it after).
+instances_a_mesh() {  # FILE.glb
+  [[ "$1" == *.glb ]] || return 1
+  python3 - "$1" <<'PY'
+import collections, json, struct, sys
+with open(sys.argv[1], "rb") as f:
+    head = f.read(20)
+    if len(head) < 20 or head[:4] != b"glTF":
+        sys.exit(1)
+    n, kind = struct.unpack_from("<II", head, 12)
+    if kind != 0x4E4F534A:  # JSON
+        sys.exit(1)
+    g = json.loads(f.read(n))
+nodes = g.get("nodes", [])
+meshes = collections.Counter(nd["mesh"] for nd in nodes if "mesh" in nd)
+parents = collections.Counter(c for nd in nodes for c in nd.get("children", []))
+sys.exit(0 if any(v > 1 for v in meshes.values()) or any(v > 1 for v in parents.values()) else 1)
+PY
+}
 
 # Scene sources: unpack, generate the DERIVED composite, compile with the bundled cwbvhc.
 times_file="$build/compile_times.txt"
@@ -130,6 +172,9 @@ tarfile.open(sys.argv[1], "r:xz").extractall(sys.argv[2], **kw)' \
     sources+=(derived_board_dragons.glb)
   fi
   threads=${COMPILE_THREADS:-$(nproc)}
+  two_level=${TWO_LEVEL:-auto}
+  rm -rf "$work/instanced"
+  mkdir -p "$work/instanced"
   for s in "${sources[@]}"; do
     name=${s%.*}
     t0=$(date +%s.%N)
@@ -144,7 +189,37 @@ tarfile.open(sys.argv[1], "r:xz").extractall(sys.argv[2], **kw)' \
     echo "$name $secs" >> "$times_file"
     echo "compile $name: $secs s at $threads threads ($(( $(stat -c %s "$work/$name.cwbvh") >> 20 )) MiB)"
     scenes+=("$work/$name.cwbvh")
+    # The two-level file of a scene that instances (no flags: cwbvhc keeps the instancing).
+    case "$two_level" in
+      none) continue ;;
+      auto) instances_a_mesh "$work/$s" || continue ;;
+      *) [[ " $two_level " == *" $name "* ]] || continue ;;
+    esac
+    inst="$work/instanced/$name.cwbvh"
+    t0=$(date +%s.%N)
+    if ! "$bundle/cwbvhc" "$work/$s" -o "$inst" --threads "$threads" --quiet \
+         --stats-json "$work/instanced/$name.stats.json" > "$work/instanced/$name.compile.log" 2>&1; then
+      cat "$work/instanced/$name.compile.log"
+      echo "gpu-check: FAIL: cwbvhc could not compile $s with its instancing" >&2
+      exit 2
+    fi
+    t1=$(date +%s.%N)
+    if ! grep -q '"two_level": true' "$work/instanced/$name.stats.json"; then
+      echo "compile $name (two-level): cwbvhc kept no instancing: no two-level check for $name"
+      rm -f "$inst"
+      continue
+    fi
+    secs2=$(awk -v a="$t0" -v b="$t1" 'BEGIN {printf "%.2f", b - a}')
+    echo "instanced:$name $secs2" >> "$times_file"
+    echo "compile $name (two-level): $secs2 s at $threads threads ($(( $(stat -c %s "$inst") >> 10 )) KiB;" \
+      "flattened: $secs s, $(( $(stat -c %s "$work/$name.cwbvh") >> 10 )) KiB)"
+    scenes+=("$inst")
   done
+fi
+if [[ "$dry_run" == "1" ]]; then
+  echo "gpu-check: DRY_RUN=1: compiled ${#scenes[@]} file(s); compile times ($times_file):"
+  cat "$times_file"
+  exit 0
 fi
 csv=${CSV:-$build/gpu_check.csv}
 log="$build/gpu_check.log"
@@ -176,8 +251,12 @@ if [[ "${CWBVH_SANITIZE_GPU:-1}" == "1" ]]; then
   if [[ -x "$sanitizer" ]]; then
     small=()
     for s in "${scenes[@]}"; do
-      [[ "$(basename "$s")" == bunny* ]] && small=("$s")
+      [[ "$(basename "$s")" == bunny* ]] && small+=("$s")
     done
+    # The two-level kernel too: dense_dragons' two files (the smallest instanced pair).
+    if [[ -f "$build/scenes/instanced/dense_dragons.cwbvh" ]]; then
+      small+=("$build/scenes/dense_dragons.cwbvh" "$build/scenes/instanced/dense_dragons.cwbvh")
+    fi
     for tool in memcheck racecheck; do
       # --no-optix: the sanitizer checks our kernels, not OptiX's internals.
       if ! "$sanitizer" --tool "$tool" --error-exitcode 9 "$build/bin/cwbvh_gpu_check" --width 64 --height 64 \

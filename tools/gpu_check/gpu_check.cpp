@@ -37,6 +37,27 @@
 // count decides. The means say how many sets they left out.
 // --csv PATH writes the table (for bench/results/gpu/).
 //
+// Two-level scenes (issue 19; format 1.2: MESH, INST, TLAS): a two-level file is given
+// beside the flattened file of the same scene key (the same stem, another folder:
+// scripts/gpu-check.sh passes SCENES/NAME.cwbvh and SCENES/instanced/NAME.cwbvh), in any
+// order; a two-level file without its flattened partner is a usage error (its rays come
+// from the flattened file). The SAME world rays (the flattened file's catalog views; the
+// diffuse bounces from the flattened file's CPU reference hits) are then also traced by
+// trace_two_level_cpu (closest and any) and the two-level kernel (trace_two_level, timed
+// like the others: events around the launches, median of --repeat after a warm-up). The
+// kernel must equal the CPU reference bit for bit (Hit record and instance; any mismatch
+// fails the check, "2L mis"). Its hits are compared with the flattened file's CWBVH
+// kernel hits (on the CPU with --cpu-only: the two CPU references) by
+// hit_compare.h's compare_with_flattened: hit/miss equal, t within 1e-5 relative, the
+// same PMAP source or an equal-t tie; disagreements are counted and printed per view,
+// ray set and query (edge cases and diffuse rounding apart), never a failure. Extra
+// output: one line per ray set and query, the two-level table (Mrays/s of the two-level
+// kernel beside the flattened file's CWBVH kernel, ratio, nodes and triangles per ray,
+// the comparisons), the instanced file's size and compile time beside the flattened ones
+// in the scene table (--compile-times key "instanced:NAME"), and the geometric means of
+// two-level / flattened CWBVH Mrays/s per ray set (target >= 0.8, issue 19). With --csv,
+// PATH's stem + "_two_level.csv" holds the two-level rows.
+//
 // Exit: 0 pass, or "SKIPPED: no CUDA device" when there is no device at all;
 //       1 a mismatch or a corrupt-index report;
 //       2 usage, I/O or CUDA error, a malformed view catalog, or a device that is
@@ -58,6 +79,7 @@
 #include <vector>
 
 #include "cwbvh/format/file_io.h"
+#include "cwbvh/format/source_map.h"
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/cuda_check.h"
 #include "cwbvh/kernels/device_scene.h"
@@ -84,6 +106,35 @@ constexpr size_t kMinRaysForMeans = 1000000;  // smaller ray sets: printed, not 
 constexpr int kKernels = 3;                   // CWBVH, BVH2, OptiX
 constexpr int kCw = 0, kB2 = 1, kOx = 2;
 
+/// The two-level (instanced) file of a scene, beside its flattened file.
+struct Instanced {
+    std::string path;
+    std::vector<CwbvhNode> top, nodes;  ///< TLAS; NODE (the bottom levels)
+    std::vector<TriangleRecord> tris;
+    std::vector<InstanceRecord> inst;
+    std::vector<MeshRecord> meshes;
+    std::vector<SourceRange> pmap;
+    uint64_t triangles = 0;            ///< distinct stored triangles
+    uint64_t instanced_triangles = 0;  ///< placed (the flattened scene's)
+    uint64_t file_bytes = 0;
+    double compile_s = -1;  ///< --compile-times "instanced:NAME", -1 unknown
+    TwoLevelScene view() const {
+        return TwoLevelScene{top.data(),    uint32_t(top.size()),   inst.data(), uint32_t(inst.size()),
+                             meshes.data(), uint32_t(meshes.size()), nodes.data(), uint32_t(nodes.size()),
+                             tris.data(),   uint32_t(tris.size())};
+    }
+    TwoLevelSections sections() const {
+        TwoLevelSections t;
+        t.top_nodes = top.data();
+        t.top_node_count = top.size();
+        t.instances = inst.data();
+        t.instance_count = inst.size();
+        t.meshes = meshes.data();
+        t.mesh_count = meshes.size();
+        return t;
+    }
+};
+
 struct Scene {
     std::string name;  ///< scene key (file stem)
     std::vector<CwbvhNode> nodes;
@@ -96,6 +147,8 @@ struct Scene {
     bool gas = false;         ///< OptiX GAS built (the fields below are set)
     uint64_t gas_bytes = 0;
     double gas_build_ms = 0, gas_compact_ms = 0;
+    std::vector<SourceRange> pmap;   ///< the flattened file's PMAP (two-level comparison)
+    std::optional<Instanced> two;    ///< the instanced file of the same scene key, if given
 };
 
 /// One kernel's result on one ray set and query.
@@ -107,6 +160,17 @@ struct KernelResult {
     uint64_t mismatches = 0, hit_vs_miss = 0, ties = 0, overflows = 0, bad_indices = 0;
 };
 
+/// The two-level kernel on the instanced file, same rays (Row::tl).
+struct TwoLevelResult {
+    bool present = false;  ///< the scene has an instanced file (CPU reference ran)
+    uint64_t cpu_hits = 0;
+    double cpu_mrays = 0;
+    KernelResult k;  ///< the kernel; k.mismatches: bitwise vs trace_two_level_cpu
+    uint64_t near = 0;  ///< of k.mismatches: same prim and instance, t within kKernelUlpBound
+    FlatCompare flat;   ///< against the flattened file's hits (GPU: its CWBVH kernel's)
+    bool flat_gpu = false;  ///< flat compared GPU hits (else the CPU references)
+};
+
 struct Row {
     std::string scene, view, rays_kind, query;
     int bounce = 0;  ///< 0 primary, 1..4 diffuse
@@ -114,6 +178,11 @@ struct Row {
     uint64_t cpu_hits = 0;
     double cpu_mrays = 0;
     KernelResult k[kKernels];  ///< [kCw] CWBVH, [kB2] BVH2, [kOx] OptiX
+    TwoLevelResult tl;         ///< the instanced file (tl.present)
+    /// Two-level kernel speed over the flattened file's CWBVH kernel's, 0 when either did not run.
+    double tl_ratio() const {
+        return tl.k.ran && k[kCw].ran && k[kCw].mrays > 0 ? tl.k.mrays / k[kCw].mrays : 0.0;
+    }
     /// CWBVH speed over kernel `other`'s, 0 when either did not run.
     double ratio(int other = kB2) const {
         return k[kCw].ran && k[other].ran && k[other].mrays > 0 ? k[kCw].mrays / k[other].mrays : 0.0;
@@ -136,17 +205,22 @@ struct DevBuf {
     DevBuf& operator=(const DevBuf&) = delete;
 };
 
+enum class Kernel { kCwbvh, kBvh2, kTwoLevel };
+
 /// Runs one kernel on `n` device rays: one untimed warm-up, `repeat` timed runs
-/// (kernel launches alone), the hits of the last timed run into `hits`, then one
-/// counting run for `stats`. Returns the median kernel time in ms.
-double run_kernel(const DeviceScene& ds, bool bvh2, const Ray* d_rays, Hit* d_hits, size_t n, bool any, int repeat,
-                  std::vector<Hit>& hits, DeviceTraceStats& stats) {
+/// (kernel launches alone), the hits of the last timed run into `hits` (and, for the
+/// two-level kernel, its instances from d_inst into *inst), then one counting run for
+/// `stats`. Returns the median kernel time in ms.
+double run_kernel(const DeviceScene& ds, Kernel kernel, const Ray* d_rays, Hit* d_hits, size_t n, bool any, int repeat,
+                  std::vector<Hit>& hits, DeviceTraceStats& stats, uint32_t* d_inst = nullptr,
+                  std::vector<uint32_t>* inst = nullptr) {
     const Query q = any ? Query::kAny : Query::kClosest;
     auto launch = [&](float* ms, DeviceTraceStats* st) {
         TraceOptions o;
         o.kernel_ms = ms;
         o.stats = st;
-        if (bvh2) trace_bvh2(ds, d_rays, d_hits, n, q, nullptr, o);
+        if (kernel == Kernel::kBvh2) trace_bvh2(ds, d_rays, d_hits, n, q, nullptr, o);
+        else if (kernel == Kernel::kTwoLevel) trace_two_level(ds, d_rays, d_hits, d_inst, n, q, nullptr, o);
         else trace(ds, d_rays, d_hits, n, q, nullptr, o);
     };
     launch(nullptr, nullptr);  // warm-up: lazy module load, occupancy query
@@ -159,6 +233,10 @@ double run_kernel(const DeviceScene& ds, bool bvh2, const Ray* d_rays, Hit* d_hi
     }
     hits.resize(n);
     if (n) CWBVH_CUDA_CHECK(cudaMemcpy(hits.data(), d_hits, n * sizeof(Hit), cudaMemcpyDeviceToHost));
+    if (inst) {
+        inst->resize(n);
+        if (n) CWBVH_CUDA_CHECK(cudaMemcpy(inst->data(), d_inst, n * sizeof(uint32_t), cudaMemcpyDeviceToHost));
+    }
     launch(nullptr, &stats);
     std::sort(times.begin(), times.end());
     return times[times.size() / 2];
@@ -202,6 +280,8 @@ int usage() {
                  "  --compile-times FILE: lines 'SCENE SECONDS' (scripts/gpu-check.sh), shown in the scene table.\n"
                  "  --no-optix: leave the OptiX peer out (built only with -DCWBVH_OPTIX_INCLUDE_DIR).\n"
                  "  ray sets of fewer than 1M rays are printed ('*') but kept out of the geometric means.\n"
+                 "  two-level files (format 1.2): each beside the flattened file of the same stem (another folder);\n"
+                 "  the two-level kernel then traces the flattened file's rays (compile time key: instanced:NAME).\n"
                  "  exit: 0 pass or SKIPPED (no CUDA device), 1 mismatch, 2 usage/IO/CUDA error or unusable device\n");
     return 2;
 }
@@ -246,22 +326,186 @@ void print_table(const std::vector<Row>& rows) {
 
 /// Per scene: our file and its compile time beside OptiX's GAS and its build time.
 void print_scene_table(const std::vector<Scene>& scenes) {
-    std::printf("\n%-21s %10s | %9s %10s %7s | %9s %8s %8s %8s\n", "scene", "triangles", "file MiB", "compile s",
-                "CW B/t", "GAS MiB", "GAS B/t", "build ms", "cmpct ms");
+    std::printf("\n%-21s %10s | %9s %10s %8s %9s %7s | %9s %8s %8s %8s\n", "scene", "triangles", "file MiB",
+                "compile s", "2L MiB", "2L cmp s", "CW B/t", "GAS MiB", "GAS B/t", "build ms", "cmpct ms");
     for (const Scene& s : scenes) {
         const double tri = double(std::max<uint64_t>(s.triangles, 1));
         const double cw_dev = double(s.nodes.size() * sizeof(CwbvhNode) + s.tris.size() * sizeof(TriangleRecord));
-        std::printf("%-21s %10llu | %9.1f %10s %7.1f | %9s %8s %8s %8s\n", s.name.c_str(),
+        const bool two = s.two.has_value();
+        std::printf("%-21s %10llu | %9.1f %10s %8s %9s %7.1f | %9s %8s %8s %8s\n", s.name.c_str(),
                     (unsigned long long)s.triangles, double(s.file_bytes) / 1048576.0,
-                    fmt(s.compile_s >= 0, "%.2f", s.compile_s).c_str(), cw_dev / tri,
+                    fmt(s.compile_s >= 0, "%.2f", s.compile_s).c_str(),
+                    fmt(two, "%.1f", two ? double(s.two->file_bytes) / 1048576.0 : 0.0).c_str(),
+                    fmt(two && s.two->compile_s >= 0, "%.2f", two ? s.two->compile_s : 0.0).c_str(), cw_dev / tri,
                     fmt(s.gas, "%.1f", double(s.gas_bytes) / 1048576.0).c_str(),
                     fmt(s.gas, "%.1f", double(s.gas_bytes) / tri).c_str(), fmt(s.gas, "%.1f", s.gas_build_ms).c_str(),
                     fmt(s.gas, "%.1f", s.gas_compact_ms).c_str());
     }
     std::printf("file: the .cwbvh (with the BVH2 section); compile s: cwbvhc wall time on this machine "
                 "(scripts/gpu-check.sh); CW B/t: NODE + TRIS bytes per triangle (what the CWBVH kernel reads);\n"
+                "2L: the scene's two-level (instanced) file and its compile time, where given; "
                 "GAS: OptiX PREFER_FAST_TRACE + ALLOW_COMPACTION, compacted; build ms: optixAccelBuild, cmpct ms: "
                 "optixAccelCompact (CUDA events)\n");
+    for (const Scene& s : scenes) {
+        if (!s.two) continue;
+        const Instanced& t = *s.two;
+        std::string compile = fmt(t.compile_s >= 0, "%.2f s", t.compile_s);
+        if (t.compile_s > 0 && s.compile_s >= 0)
+            compile += " (the flattened file's " + fmt(true, "%.2f s", s.compile_s) + ": " +
+                       fmt(true, "%.1fx", s.compile_s / t.compile_s) + " faster)";
+        const double dev = double(t.top.size() * sizeof(CwbvhNode) + t.inst.size() * sizeof(InstanceRecord) +
+                                  t.meshes.size() * sizeof(MeshRecord) + t.nodes.size() * sizeof(CwbvhNode) +
+                                  t.tris.size() * sizeof(TriangleRecord));
+        std::printf("%s two-level: %zu meshes placed %zu times, %llu distinct / %llu instanced triangles; file %.2f "
+                    "MiB = %.3fx the flattened file (as given: gpu-check.sh compiles it with --keep-sbvh, BVH2 "
+                    "included); compile %s; device %.1f MiB (flattened CWBVH %.1f)\n",
+                    s.name.c_str(), t.meshes.size(), t.inst.size(), (unsigned long long)t.triangles,
+                    (unsigned long long)t.instanced_triangles, double(t.file_bytes) / 1048576.0,
+                    double(t.file_bytes) / double(std::max<uint64_t>(s.file_bytes, 1)),
+                    compile.c_str(), dev / 1048576.0,
+                    double(s.nodes.size() * sizeof(CwbvhNode) + s.tris.size() * sizeof(TriangleRecord)) / 1048576.0);
+    }
+}
+
+std::string describe(const FlatCompare& c, bool any) {
+    char b[320];
+    if (any)
+        std::snprintf(b, sizeof b, "%llu disagreeing (hit/miss %llu; edge %llu)", (unsigned long long)c.disagreeing,
+                      (unsigned long long)c.hit_vs_miss, (unsigned long long)c.edge);
+    else
+        std::snprintf(b, sizeof b,
+                      "%llu disagreeing (hit/miss %llu, t %llu, source %llu); edge %llu, t within rounding %llu, "
+                      "ties %llu, worst t %.2g rel",
+                      (unsigned long long)c.disagreeing, (unsigned long long)c.hit_vs_miss,
+                      (unsigned long long)c.t_far, (unsigned long long)c.source, (unsigned long long)c.edge,
+                      (unsigned long long)c.t_rounding, (unsigned long long)c.ties, c.worst_rel);
+    return b;
+}
+
+/// The two-level rows: the instanced file's kernel beside the flattened file's CWBVH
+/// kernel on the same rays, and the comparisons.
+void print_two_level_table(const std::vector<Row>& rows) {
+    bool anyrow = false, small = false, gpu = false;
+    for (const Row& r : rows) {
+        anyrow = anyrow || r.tl.present;
+        gpu = gpu || r.tl.flat_gpu;
+    }
+    if (!anyrow) return;
+    std::printf("\nTwo-level (instanced file) vs flattened file, same rays:\n");
+    std::printf("%-21s %-10s %-9s %-7s %10s %7s | %8s %8s %6s | %6s %6s %6s | %6s | %6s %5s %5s %5s %5s %5s %5s "
+                "%8s\n",
+                "scene", "view", "rays", "query", "count", "hit%", "2L Mr/s", "CW Mr/s", "2L/CW", "2L n/r", "2L t/r",
+                "CW n/r", "2L mis", "disagr", "h/m", "edge", "t", "round", "src", "ties", "worst t");
+    for (const Row& r : rows) {
+        if (!r.tl.present) continue;
+        const KernelResult &t = r.tl.k, &c = r.k[kCw];
+        const FlatCompare& f = r.tl.flat;
+        small = small || !r.in_means();
+        std::printf("%-21s %-10s %-9s %-7s %9zu%c %6.1f%% | %8s %8s %6s | %6s %6s %6s | %6s | %6llu %5llu %5llu %5llu "
+                    "%5llu %5llu %5llu %8.2g\n",
+                    r.scene.c_str(), r.view.c_str(), r.rays_kind.c_str(), r.query.c_str(), r.rays,
+                    r.in_means() ? ' ' : '*', r.rays ? 100.0 * double(r.tl.cpu_hits) / double(r.rays) : 0.0,
+                    fmt(t.ran, "%.1f", t.mrays).c_str(), fmt(c.ran, "%.1f", c.mrays).c_str(),
+                    fmt(r.tl_ratio() > 0, "%.2fx", r.tl_ratio()).c_str(), fmt(t.ran, "%.1f", t.nodes_per_ray).c_str(),
+                    fmt(t.ran, "%.1f", t.tris_per_ray).c_str(), fmt(c.ran, "%.1f", c.nodes_per_ray).c_str(),
+                    fmt(t.ran, "%.0f", double(t.mismatches)).c_str(), (unsigned long long)f.disagreeing,
+                    (unsigned long long)f.hit_vs_miss, (unsigned long long)f.edge, (unsigned long long)f.t_far,
+                    (unsigned long long)f.t_rounding, (unsigned long long)f.source, (unsigned long long)f.ties,
+                    f.worst_rel);
+    }
+    if (small)
+        std::printf("* fewer than %zu rays: printed, not in the geometric means\n", kMinRaysForMeans);
+    std::printf("2L: the two-level kernel on the instanced file; CW: the CWBVH kernel on the flattened file; 2L mis: "
+                "hits not bit for bit those of trace_two_level_cpu (a failure);\n"
+                "disagr: rays whose two-level hit disagrees with the flattened file's (%s): hit/miss (h/m), t beyond "
+                "1e-5 relative (t), another source triangle at a t not close (src);\n"
+                "counted apart, accepted: edge (hit vs miss, or another triangle farther away, the nearer hit within "
+                "1e-5 of an edge), round (t beyond 1e-5 but within 16 u of the scene extent along the normal), ties "
+                "(another source at a close t)\n",
+                gpu ? "GPU kernels' hits" : "CPU references");
+}
+
+/// Geometric means over the two-level scenes (a scene: the geometric mean over its
+/// views) of the two-level kernel's Mrays/s and of its speed over the flattened file's
+/// CWBVH kernel, closest hit (issue 19: at least 0.8x).
+void print_two_level_summary(const std::vector<Row>& rows) {
+    std::map<std::string, std::map<std::string, std::map<int, const Row*>>> by;
+    std::vector<std::string> scene_order;
+    FlatCompare flat_all;
+    uint64_t mis = 0, near = 0;
+    bool present = false, gpu = false;
+    for (const Row& r : rows) {
+        if (!r.tl.present) continue;
+        present = true;
+        gpu = gpu || r.tl.k.ran;
+        flat_all += r.tl.flat;
+        mis += r.tl.k.mismatches;
+        near += r.tl.near;
+        if (r.query != "closest" || !r.tl.k.ran || !r.k[kCw].ran) continue;
+        if (!by.count(r.scene)) scene_order.push_back(r.scene);
+        by[r.scene][r.view][r.bounce] = &r;
+    }
+    if (!present) return;
+    if (!gpu) {
+        std::printf("\ntwo-level vs flattened hits (CPU references), all rays and queries: %s\n",
+                    describe(flat_all, false).c_str());
+        return;
+    }
+    std::printf("\nTwo-level / flattened CWBVH kernel, geometric mean over %zu scene(s) (each scene: geometric mean "
+                "over its views), closest hit, same rays; target >= 0.80x (issue 19):\n",
+                scene_order.size());
+    std::printf("%-14s %8s %15s %14s %13s %13s\n", "rays", "scenes", "2-level Mrays/s", "flat CW Mr/s",
+                "2-level/flat", "sets left out");
+    std::map<std::string, std::vector<double>> all;  // scene -> every in-means ratio
+    for (int set = 0; set <= kBounces + 1; ++set) {
+        std::vector<double> mr, cw, ratio;
+        size_t left_out = 0;
+        for (const std::string& s : scene_order) {
+            std::vector<double> vmr, vcw, vratio;
+            for (const auto& [view, bounces] : by[s]) {
+                double ms2 = 0, ms1 = 0, n = 0;
+                bool ok = true;
+                for (int b = (set == kBounces + 1 ? 1 : set); b <= (set == kBounces + 1 ? kBounces : set); ++b) {
+                    const auto it = bounces.find(b);
+                    if (it == bounces.end()) {
+                        ok = false;
+                        break;
+                    }
+                    ms2 += it->second->tl.k.ms;
+                    ms1 += it->second->k[kCw].ms;
+                    n += double(it->second->rays);
+                }
+                if (!ok || n == 0 || ms2 <= 0 || ms1 <= 0) continue;
+                if (n < double(kMinRaysForMeans)) {
+                    ++left_out;
+                    continue;
+                }
+                vmr.push_back(n / (ms2 * 1e3));
+                vcw.push_back(n / (ms1 * 1e3));
+                vratio.push_back(ms1 / ms2);
+                if (set <= kBounces) all[s].push_back(ms1 / ms2);
+            }
+            if (!vmr.empty()) {
+                mr.push_back(geomean(vmr));
+                cw.push_back(geomean(vcw));
+                ratio.push_back(geomean(vratio));
+            }
+        }
+        const char* name = set <= kBounces ? kind_name(set) : "diffuse1-4";
+        std::printf("%-14s %8zu %15s %14s %13s %13zu\n", name, mr.size(), fmt(!mr.empty(), "%.1f", geomean(mr)).c_str(),
+                    fmt(!cw.empty(), "%.1f", geomean(cw)).c_str(), fmt(!ratio.empty(), "%.2fx", geomean(ratio)).c_str(),
+                    left_out);
+    }
+    std::vector<double> per_scene;
+    for (const auto& [scene, v] : all) per_scene.push_back(geomean(v));
+    std::printf("two-level / flattened over every ray set in the means (primary, diffuse 1-4; each scene weighted "
+                "equally): %s (target >= 0.80x)\n",
+                fmt(!per_scene.empty(), "%.2fx", geomean(per_scene)).c_str());
+    std::printf("two-level vs flattened hits (GPU kernels), all rays and queries: %s\n",
+                describe(flat_all, false).c_str());
+    std::printf("two-level kernel vs trace_two_level_cpu: %llu rays not bit for bit (%llu of them same prim and "
+                "instance, t within %u ulps)\n",
+                (unsigned long long)mis, (unsigned long long)near, kKernelUlpBound);
 }
 
 /// Geometric means over scenes (a scene = the geometric mean over its views), closest hit.
@@ -355,6 +599,47 @@ bool write_csv(const std::string& path, const std::vector<Row>& rows, const std:
     return bool(f);
 }
 
+/// The two-level rows (--csv PATH: PATH's stem + "_two_level.csv").
+bool write_two_level_csv(const std::string& path, const std::vector<Row>& rows, const std::string& device, int width,
+                         int height, int repeat) {
+    std::ofstream f(path);
+    if (!f) return false;
+    f << "scene,view,rays,query,width,height,count,device,repeat,cpu_hits_flat,cpu_hits_two_level,two_level_ms,"
+         "two_level_mrays,cwbvh_ms,cwbvh_mrays,two_level_over_cwbvh,two_level_nodes_per_ray,two_level_tris_per_ray,"
+         "two_level_mismatches,two_level_near,two_level_overflows,flat_compared,flat_disagreeing,flat_hit_vs_miss,"
+         "flat_edge,flat_t,flat_t_rounding,flat_source,flat_ties,flat_worst_rel,in_means\n";
+    auto num = [](bool ran, double v) {
+        if (!ran) return std::string();
+        char b[32];
+        std::snprintf(b, sizeof b, "%.6g", v);
+        return std::string(b);
+    };
+    for (const Row& r : rows) {
+        if (!r.tl.present) continue;
+        const KernelResult &t = r.tl.k, &c = r.k[kCw];
+        const FlatCompare& x = r.tl.flat;
+        f << r.scene << ',' << r.view << ',' << r.rays_kind << ',' << r.query << ',' << width << ',' << height << ','
+          << r.rays << ",\"" << device << "\"," << repeat << ',' << r.cpu_hits << ',' << r.tl.cpu_hits << ','
+          << num(t.ran, t.ms) << ',' << num(t.ran, t.mrays) << ',' << num(c.ran, c.ms) << ',' << num(c.ran, c.mrays)
+          << ',' << num(r.tl_ratio() > 0, r.tl_ratio()) << ',' << num(t.ran, t.nodes_per_ray) << ','
+          << num(t.ran, t.tris_per_ray) << ',' << (t.ran ? std::to_string(t.mismatches) : std::string()) << ','
+          << (t.ran ? std::to_string(r.tl.near) : std::string()) << ','
+          << (t.ran ? std::to_string(t.overflows) : std::string()) << ',' << (r.tl.flat_gpu ? "gpu" : "cpu") << ','
+          << x.disagreeing << ',' << x.hit_vs_miss << ',' << x.edge << ',' << x.t_far << ',' << x.t_rounding << ','
+          << x.source << ',' << x.ties << ',' << num(true, x.worst_rel) << ',' << (r.in_means() ? 1 : 0) << '\n';
+    }
+    return bool(f);
+}
+
+/// PATH's stem + "_two_level.csv" (PATH without ".csv": PATH + "_two_level.csv").
+std::string two_level_csv_path(const std::string& csv) {
+    const size_t slash = csv.find_last_of('/');
+    const size_t base = slash == std::string::npos ? 0 : slash + 1;
+    if (csv.size() > base + 4 && csv.compare(csv.size() - 4, 4, ".csv") == 0)
+        return csv.substr(0, csv.size() - 4) + "_two_level.csv";
+    return csv + "_two_level.csv";
+}
+
 /// --compile-times: "SCENE SECONDS" per line (scripts/gpu-check.sh writes it).
 bool read_compile_times(const std::string& path, std::map<std::string, double>& out) {
     // A regular file of at most 1 MiB (file_io.h: no FIFO or device, bounded before allocating).
@@ -410,12 +695,17 @@ int main(int argc, char** argv) {
         else if (!a.empty() && a[0] == '-') return usage();
         else paths.push_back(a);
     }
-    // The table never overwrites an input (the scenes, the catalog, the compile times).
+    // The tables never overwrite an input (the scenes, the catalog, the compile times)
+    // or each other.
     if (!csv_path.empty()) {
         std::vector<std::string> inputs = paths;
         if (!views_path.empty()) inputs.push_back(views_path);
         if (!compile_times_path.empty()) inputs.push_back(compile_times_path);
-        const Result out = check_output_path(csv_path, inputs);
+        Result out = check_output_path(csv_path, inputs);
+        if (out.ok()) {
+            inputs.push_back(csv_path);
+            out = check_output_path(two_level_csv_path(csv_path), inputs);
+        }
         if (!out.ok()) {
             std::fprintf(stderr, "cwbvh_gpu_check: error: %s\n", out.message.c_str());
             return 2;
@@ -476,11 +766,29 @@ int main(int argc, char** argv) {
         return 2;
 #endif
     }
+    std::vector<Instanced> instanced;  // two-level files, paired with their flattened scene below
     for (const std::string& p : paths) {
         Expected<File> f = File::open(p);
         if (!f.ok()) {
             std::fprintf(stderr, "cwbvh_gpu_check: error: %s\n", f.error().describe().c_str());
             return 2;
+        }
+        if (f->is_two_level()) {
+            Instanced t;
+            t.path = p;
+            t.top.assign(f->top_nodes().begin(), f->top_nodes().end());
+            t.nodes.assign(f->nodes().begin(), f->nodes().end());
+            t.tris.assign(f->triangles().begin(), f->triangles().end());
+            t.inst.assign(f->instances().begin(), f->instances().end());
+            t.meshes.assign(f->meshes().begin(), f->meshes().end());
+            t.pmap.assign(f->source_ranges().begin(), f->source_ranges().end());
+            t.triangles = f->stored_triangle_count();
+            t.instanced_triangles = f->instanced_triangle_count();
+            t.file_bytes = f->bytes().size();
+            if (const auto it = compile_times.find("instanced:" + scene_key(p)); it != compile_times.end())
+                t.compile_s = it->second;
+            instanced.push_back(std::move(t));
+            continue;
         }
         Scene s;
         s.name = scene_key(p);
@@ -490,8 +798,30 @@ int main(int argc, char** argv) {
         if (f->bounds()) s.bounds = *f->bounds();
         s.triangles = f->stored_triangle_count();
         s.file_bytes = f->bytes().size();
+        s.pmap.assign(f->source_ranges().begin(), f->source_ranges().end());
         if (const auto it = compile_times.find(s.name); it != compile_times.end()) s.compile_s = it->second;
         scenes.push_back(std::move(s));
+    }
+    for (Instanced& t : instanced) {
+        const std::string key = scene_key(t.path);
+        Scene* partner = nullptr;
+        for (Scene& s : scenes)
+            if (s.name == key) partner = &s;
+        if (!partner) {
+            std::fprintf(stderr, "cwbvh_gpu_check: error: %s: a two-level file needs the flattened file of the same "
+                                 "scene beside it (%s.cwbvh in another folder, cwbvhc --flatten): its rays come from "
+                                 "that file\n", t.path.c_str(), key.c_str());
+            return 2;
+        }
+        if (partner->two) {
+            std::fprintf(stderr, "cwbvh_gpu_check: error: %s: a second two-level file for scene %s (first: %s)\n",
+                         t.path.c_str(), key.c_str(), partner->two->path.c_str());
+            return 2;
+        }
+        if (t.instanced_triangles != partner->triangles)
+            std::printf("%s: the two-level file places %llu triangles, the flattened file stores %llu\n", key.c_str(),
+                        (unsigned long long)t.instanced_triangles, (unsigned long long)partner->triangles);
+        partner->two = std::move(t);
     }
 
     std::vector<Row> rows;
@@ -531,7 +861,20 @@ int main(int argc, char** argv) {
                     "%d timed runs\n", width, height, kBounces, kSeed, repeat);
         for (Scene& s : scenes) {
             const PrimTable table(s.tris.data(), s.tris.size());
-            std::optional<DeviceScene> ds;
+            std::optional<DeviceScene> ds, ds2;  // ds2: the two-level file (s.two)
+            // Two-level vs flattened (hit_compare.h): the same source triangle, and the
+            // flattened triangle's normal against the ray for the rounding bound.
+            const double slack = flat_rounding_slack([&] {
+                double e = 0;
+                for (int a = 0; a < 3; ++a) e = std::max({e, std::fabs(double(s.bounds.lo[a])),
+                                                          std::fabs(double(s.bounds.hi[a]))});
+                return e;
+            }());
+            auto same_source = [&](uint32_t two_prim, uint32_t flat_prim) {
+                const auto a = find_source(s.two->pmap, two_prim), b = find_source(s.pmap, flat_prim);
+                return a && b && a->input == b->input && a->mesh == b->mesh && a->primitive == b->primitive &&
+                       a->triangle == b->triangle;
+            };
             if (have_gpu) {
                 UploadOptions uo;
                 uo.method = UploadMethod::kPageable;
@@ -552,6 +895,16 @@ int main(int argc, char** argv) {
                             ds->upload_stats().seconds * 1e3, up_pageable);
                 if (!ds->has_bvh2())
                     std::printf("%s: no BVH2 section (compile with --keep-sbvh): CWBVH kernel only\n", s.name.c_str());
+                if (s.two) {
+                    const Instanced& t = *s.two;
+                    auto up2 = DeviceScene::upload(t.nodes.data(), t.nodes.size(), t.tris.data(), t.tris.size(),
+                                                   nullptr, 0, t.sections(), uo);
+                    if (!up2.ok()) throw std::runtime_error(t.path + ": " + up2.error().message);
+                    ds2 = std::move(up2.value());
+                    std::printf("%s (two-level, %s): upload %.1f MiB (top level %.2f MiB): pinned staging %.2f ms\n",
+                                s.name.c_str(), t.path.c_str(), double(ds2->upload_stats().bytes) / 1048576.0,
+                                double(ds2->top_level_bytes()) / 1048576.0, ds2->upload_stats().seconds * 1e3);
+                }
 #ifdef CWBVH_HAVE_OPTIX
                 OptixGasInfo gi;
                 if (optix) {
@@ -606,6 +959,78 @@ int main(int argc, char** argv) {
                                     (unsigned long long)ca.hits);
                         failed = true;
                     }
+                    // The instanced file on the same rays: CPU reference (closest, any).
+                    std::vector<Hit> ref2, ref2_any;
+                    std::vector<uint32_t> inst2, inst2_any;
+                    CpuTraceStats ts2, ta2;
+                    if (s.two) {
+                        const TwoLevelScene tv = s.two->view();
+                        ref2.resize(rays.size());
+                        ref2_any.resize(rays.size());
+                        inst2.resize(rays.size());
+                        inst2_any.resize(rays.size());
+                        CpuTraceOptions o2;
+                        ts2 = trace_two_level_cpu(tv, rays.data(), ref2.data(), inst2.data(), rays.size(), o2);
+                        o2.mode = HitMode::kAny;
+                        ta2 = trace_two_level_cpu(tv, rays.data(), ref2_any.data(), inst2_any.data(), rays.size(), o2);
+                        std::printf("  %-9s %9s two-level %9llu hits (%5.1f%%), any-hit %9llu, CPU %.2f Mrays/s\n", "",
+                                    "", (unsigned long long)ts2.hits,
+                                    rays.empty() ? 0.0 : 100.0 * double(ts2.hits) / double(rays.size()),
+                                    (unsigned long long)ta2.hits,
+                                    ts2.seconds > 0 ? double(rays.size()) / ts2.seconds / 1e6 : 0.0);
+                        if (ta2.hits != ts2.hits || ts2.bad_indices + ta2.bad_indices) {
+                            std::printf("  MISMATCH %s %s %s two-level CPU: closest hit %llu rays, any hit %llu, bad "
+                                        "indices %llu\n",
+                                        s.name.c_str(), view.name.c_str(), kind_name(bounce),
+                                        (unsigned long long)ts2.hits, (unsigned long long)ta2.hits,
+                                        (unsigned long long)(ts2.bad_indices + ta2.bad_indices));
+                            failed = true;
+                        }
+                    }
+                    // Prints one query's two-level line (after the comparisons are in).
+                    auto two_level_line = [&](const Row& r) {
+                        const bool any = r.query == "any";
+                        if (r.tl.k.ran)
+                            std::printf("  2L %-7s %8.1f Mrays/s, flattened CWBVH %8s: %s; %llu not bit for bit; vs "
+                                        "flattened (GPU): %s\n",
+                                        r.query.c_str(), r.tl.k.mrays,
+                                        fmt(r.k[kCw].ran, "%.1f", r.k[kCw].mrays).c_str(),
+                                        fmt(r.tl_ratio() > 0, "%.2fx", r.tl_ratio()).c_str(),
+                                        (unsigned long long)r.tl.k.mismatches, describe(r.tl.flat, any).c_str());
+                        else
+                            std::printf("  2L %-7s vs flattened (CPU): %s\n", r.query.c_str(),
+                                        describe(r.tl.flat, any).c_str());
+                    };
+                    auto flat_compare = [&](const std::vector<Hit>& two, const std::vector<Hit>& flat, bool any) {
+                        return compare_with_flattened(two, flat, any, slack, same_source,
+                                                      [&](size_t i, uint32_t prim) -> double {
+                                                          const TriangleRecord* tri = table.find(prim);
+                                                          float n[3];
+                                                          if (!tri || !geometric_normal(*tri, n)) return -1.0;
+                                                          return std::fabs(double(n[0]) * rays[i].dir[0] +
+                                                                           double(n[1]) * rays[i].dir[1] +
+                                                                           double(n[2]) * rays[i].dir[2]);
+                                                      });
+                    };
+                    // The first ray of a two-level vs flattened disagreement, for the log.
+                    auto first_disagreement = [&](const FlatCompare& c, const std::vector<Hit>& two,
+                                                  const std::vector<uint32_t>& inst, const std::vector<Hit>& flat) {
+                        if (c.first_bad < 0) return;
+                        const size_t i = size_t(c.first_bad);
+                        auto src = [](const std::vector<SourceRange>& pm, uint32_t prim) {
+                            const auto r = prim == kMissPrim ? std::nullopt : find_source(pm, prim);
+                            char b[64];
+                            if (r) std::snprintf(b, sizeof b, "%u/%u/%u/%u", r->input, r->mesh, r->primitive,
+                                                 r->triangle);
+                            else std::snprintf(b, sizeof b, "-");
+                            return std::string(b);
+                        };
+                        std::printf("    first disagreement: ray %zu: two-level inst %u prim %u (source %s) t %.9g "
+                                    "u %.6g v %.6g; flattened prim %u (source %s) t %.9g u %.6g v %.6g\n",
+                                    i, inst[i], two[i].prim, src(s.two->pmap, two[i].prim).c_str(), double(two[i].t),
+                                    double(two[i].u), double(two[i].v), flat[i].prim, src(s.pmap, flat[i].prim).c_str(),
+                                    double(flat[i].t), double(flat[i].u), double(flat[i].v));
+                    };
                     for (int any = 0; any < 2; ++any) {
                         Row r;
                         r.scene = s.name;
@@ -617,6 +1042,18 @@ int main(int argc, char** argv) {
                         r.cpu_hits = any ? ca.hits : cs.hits;
                         r.cpu_mrays = any ? (ca.seconds > 0 ? double(rays.size()) / ca.seconds / 1e6 : 0.0)
                                           : cpu_mrays;
+                        if (s.two) {
+                            const CpuTraceStats& t2 = any ? ta2 : ts2;
+                            r.tl.present = true;
+                            r.tl.cpu_hits = t2.hits;
+                            r.tl.cpu_mrays = t2.seconds > 0 ? double(rays.size()) / t2.seconds / 1e6 : 0.0;
+                            if (!have_gpu || rays.empty()) {  // the CPU references (no GPU, or --cpu-only)
+                                r.tl.flat = flat_compare(any ? ref2_any : ref2, any ? ref_any : ref, any != 0);
+                                two_level_line(r);
+                                first_disagreement(r.tl.flat, any ? ref2_any : ref2, any ? inst2_any : inst2,
+                                                   any ? ref_any : ref);
+                            }
+                        }
                         rows.push_back(r);
                     }
                     if (have_gpu && !rays.empty()) {
@@ -653,13 +1090,14 @@ int main(int argc, char** argv) {
                                 kr.ties = c.ties;
                             }
 #endif
+                            std::vector<Hit> cw_hits;  // the flattened file's CWBVH kernel (two-level comparison)
                             for (int k = 0; k < 2; ++k) {
                                 const bool bvh2 = k == 1;
                                 if (bvh2 && !ds->has_bvh2()) continue;
                                 std::vector<Hit> hits;
                                 DeviceTraceStats st;
-                                const double ms = run_kernel(*ds, bvh2, d_rays.p, d_hits.p, rays.size(), any != 0,
-                                                             repeat, hits, st);
+                                const double ms = run_kernel(*ds, bvh2 ? Kernel::kBvh2 : Kernel::kCwbvh, d_rays.p,
+                                                             d_hits.p, rays.size(), any != 0, repeat, hits, st);
                                 const std::vector<Hit>& cpu = any ? ref_any : ref;
                                 const HitCompare c = compare_hits(hits, cpu, any != 0, kKernelUlpBound);
                                 KernelResult& kr = r.k[k];
@@ -688,6 +1126,52 @@ int main(int argc, char** argv) {
                                                     (unsigned long long)c.mismatches);
                                     }
                                 }
+                                if (!bvh2) cw_hits = std::move(hits);
+                            }
+                            if (ds2) {  // the two-level kernel on the instanced file, the same rays
+                                DevBuf<uint32_t> d_inst(rays.size());
+                                std::vector<Hit> hits;
+                                std::vector<uint32_t> inst;
+                                DeviceTraceStats st;
+                                const double ms = run_kernel(*ds2, Kernel::kTwoLevel, d_rays.p, d_hits.p, rays.size(),
+                                                             any != 0, repeat, hits, st, d_inst.p, &inst);
+                                KernelResult& kr = r.tl.k;
+                                int64_t first = -1;
+                                kr.mismatches = compare_bitwise(hits, inst, any ? ref2_any : ref2,
+                                                                any ? inst2_any : inst2, &first, &r.tl.near);
+                                kr.ran = true;
+                                kr.ms = ms;
+                                kr.mrays = ms > 0 ? double(rays.size()) / (ms * 1e3) : 0.0;
+                                kr.nodes_per_ray = double(st.nodes_visited) / double(rays.size());
+                                kr.tris_per_ray = double(st.triangles_tested) / double(rays.size());
+                                kr.overflows = st.stack_overflows;
+                                kr.bad_indices = st.bad_indices;
+                                const std::vector<Hit>& flat_hits = cw_hits.empty() ? (any ? ref_any : ref) : cw_hits;
+                                r.tl.flat = flat_compare(hits, flat_hits, any != 0);
+                                r.tl.flat_gpu = !cw_hits.empty();
+                                two_level_line(r);
+                                first_disagreement(r.tl.flat, hits, inst, flat_hits);
+                                if (kr.mismatches || st.bad_indices) {
+                                    failed = true;
+                                    if (st.bad_indices)
+                                        std::printf("  BAD INDICES %s %s %s %s two-level: %llu\n", s.name.c_str(),
+                                                    view.name.c_str(), r.rays_kind.c_str(), r.query.c_str(),
+                                                    (unsigned long long)st.bad_indices);
+                                    if (first >= 0) {
+                                        const size_t i = size_t(first);
+                                        const std::vector<Hit>& cpu = any ? ref2_any : ref2;
+                                        const std::vector<uint32_t>& ci = any ? inst2_any : inst2;
+                                        std::printf("  MISMATCH %s %s %s %s two-level ray %zu: gpu inst %u prim %u t "
+                                                    "%.9g u %.9g v %.9g, cpu inst %u prim %u t %.9g u %.9g v %.9g "
+                                                    "(%llu not bit for bit, %llu of them within %u ulps)\n",
+                                                    s.name.c_str(), view.name.c_str(), r.rays_kind.c_str(),
+                                                    r.query.c_str(), i, inst[i], hits[i].prim, double(hits[i].t),
+                                                    double(hits[i].u), double(hits[i].v), ci[i], cpu[i].prim,
+                                                    double(cpu[i].t), double(cpu[i].u), double(cpu[i].v),
+                                                    (unsigned long long)kr.mismatches,
+                                                    (unsigned long long)r.tl.near, kKernelUlpBound);
+                                    }
+                                }
                             }
                         }
                     }
@@ -704,15 +1188,26 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "cwbvh_gpu_check: error: %s: cannot write the CSV\n", csv_path.c_str());
         return 2;
     }
+    const bool any_two_level = std::any_of(scenes.begin(), scenes.end(), [](const Scene& s) { return bool(s.two); });
+    if (!csv_path.empty() && any_two_level &&
+        !write_two_level_csv(two_level_csv_path(csv_path), rows, device_name, width, height, repeat)) {
+        std::fprintf(stderr, "cwbvh_gpu_check: error: %s: cannot write the CSV\n",
+                     two_level_csv_path(csv_path).c_str());
+        return 2;
+    }
     if (!have_gpu) {
+        print_two_level_table(rows);
+        print_two_level_summary(rows);  // the hit comparison (no speeds without a GPU)
         print_scene_table(scenes);  // the compile side (no GAS columns without a GPU)
         std::printf("CPU-only run done (%s)%s\n", why.empty() ? "--cpu-only" : why.c_str(),
                     failed ? ": CPU closest/any-hit disagreement" : "");
         return failed ? 1 : 0;
     }
     print_table(rows);
+    print_two_level_table(rows);
     print_scene_table(scenes);
     print_summary(rows);
+    print_two_level_summary(rows);
     std::printf("%s\n", failed ? "RESULT: FAIL" : "RESULT: PASS");
     return failed ? 1 : 0;
 }

@@ -16,6 +16,18 @@
 // own (not watertight in our sense, t computed its way): its mismatches are counted
 // and printed, never a failure of the check; hit-vs-miss disagreements at shared edges
 // and silhouettes are expected there.
+//
+// compare_with_flattened: a two-level (instanced) file's hits against the flattened
+// file's on the same world rays (issue 19: hit/miss equal; t within 1e-5 relative; the
+// same PMAP source or an equal-t tie). The categories are those of
+// tests/traverse/two_level_files_test.cpp's CPU check: a hit-vs-miss whose hitting
+// side lies within 1e-5 (barycentric) of an edge is counted apart ("edge": the two
+// files round differently there: world vertices vs the object-space ray), and so is a
+// pair of hits on different source triangles at a t not close whose nearer hit lies at
+// an edge (the same case with something behind the edge); a t beyond
+// 1e-5 relative whose gap along the flattened triangle's normal is within the rounding
+// of world coordinates (`slack`: diffuse rays leave from a surface) is counted apart
+// ("rounding"). Every other difference is a disagreement.
 #pragma once
 
 #include <algorithm>
@@ -69,6 +81,129 @@ inline HitCompare compare_hits(const std::vector<Hit>& hits, const std::vector<H
         }
     }
     return c;
+}
+
+inline constexpr double kFlatRelT = 1e-5;    ///< issue 19: t within 1e-5 relative
+inline constexpr double kFlatEdgeBary = 1e-5; ///< a hit this close to an edge may go either way
+/// Rounding of world coordinates of size `extent` (float): 16 u, u = 2^-24, times the
+/// extent (tests/traverse/two_level_files_test.cpp's bound).
+inline double flat_rounding_slack(double extent) { return 16.0 * 5.9604644775390625e-08 * extent; }
+
+struct FlatCompare {
+    uint64_t rays = 0, hits = 0;  ///< compared rays; of them, both hit
+    uint64_t hit_vs_miss = 0;     ///< one hits, the other misses, not at an edge: disagreement
+    uint64_t edge = 0;            ///< one hits, the other misses (or hits another triangle farther away),
+                                  ///< the nearer hit within kFlatEdgeBary of an edge
+    uint64_t t_far = 0;           ///< t beyond 1e-5 relative and beyond the rounding: disagreement
+    uint64_t t_rounding = 0;      ///< t beyond 1e-5 relative, within the rounding along the normal
+    uint64_t source = 0;          ///< different PMAP source, t not close: disagreement
+    uint64_t ties = 0;            ///< different PMAP source at a close t: accepted
+    uint64_t disagreeing = 0;     ///< rays with any disagreement
+    double worst_rel = 0;         ///< largest relative t gap among the hits within 1e-5
+    int64_t first_bad = -1;       ///< first disagreeing ray, -1 if none
+    FlatCompare& operator+=(const FlatCompare& o) {
+        if (first_bad < 0 && o.first_bad >= 0) first_bad = int64_t(rays) + o.first_bad;
+        rays += o.rays;
+        hits += o.hits;
+        hit_vs_miss += o.hit_vs_miss;
+        edge += o.edge;
+        t_far += o.t_far;
+        t_rounding += o.t_rounding;
+        source += o.source;
+        ties += o.ties;
+        disagreeing += o.disagreeing;
+        worst_rel = std::max(worst_rel, o.worst_rel);
+        return *this;
+    }
+};
+
+/// two[i] (the two-level file's hit) against flat[i] (the flattened file's) for
+/// i < flat.size(). Any hit: hit/miss only. Closest hit: same_source(two_prim,
+/// flat_prim) says whether both stored triangles come from the same source triangle
+/// (PMAP: input, mesh, primitive, triangle); normal_cos(i, flat_prim) is |n . d| of
+/// ray i's direction with the flattened triangle's unit normal (< 0: unknown, then
+/// only 1e-5 relative counts as close); slack: flat_rounding_slack(scene extent).
+template <class SameSource, class NormalCos>
+FlatCompare compare_with_flattened(const std::vector<Hit>& two, const std::vector<Hit>& flat, bool any, double slack,
+                                   SameSource&& same_source, NormalCos&& normal_cos) {
+    FlatCompare c;
+    for (size_t i = 0; i < flat.size(); ++i) {
+        ++c.rays;
+        const bool ha = two[i].prim != kMissPrim, hb = flat[i].prim != kMissPrim;
+        bool bad = false;
+        auto at_edge = [](const Hit& h) {
+            return std::min({double(h.u), double(h.v), 1.0 - double(h.u) - double(h.v)}) <= kFlatEdgeBary;
+        };
+        if (ha != hb) {
+            if (at_edge(ha ? two[i] : flat[i])) {
+                ++c.edge;
+            } else {
+                ++c.hit_vs_miss;
+                bad = true;
+            }
+        } else if (ha) {
+            ++c.hits;
+            if (!any) {
+                const double gap = std::fabs(double(two[i].t) - double(flat[i].t));
+                const double rel = gap / std::fabs(double(flat[i].t));
+                bool close = rel <= kFlatRelT;
+                if (close) {
+                    c.worst_rel = std::max(c.worst_rel, rel);
+                } else {
+                    const double cs = normal_cos(i, flat[i].prim);
+                    close = cs >= 0 && gap * cs <= slack;
+                    if (close) {
+                        ++c.t_rounding;
+                    } else if (at_edge(two[i].t < flat[i].t ? two[i] : flat[i]) &&
+                               !same_source(two[i].prim, flat[i].prim)) {
+                        // The nearer hit lies on an edge of a triangle that the other
+                        // file's rounding missed there (a silhouette): the hit/miss edge
+                        // case with something behind it.
+                        ++c.edge;
+                        continue;
+                    } else {
+                        ++c.t_far;
+                        bad = true;
+                    }
+                }
+                if (!same_source(two[i].prim, flat[i].prim)) {
+                    if (close) {
+                        ++c.ties;
+                    } else {
+                        ++c.source;
+                        bad = true;
+                    }
+                }
+            }
+        }
+        if (bad) {
+            ++c.disagreeing;
+            if (c.first_bad < 0) c.first_bad = int64_t(i);
+        }
+    }
+    return c;
+}
+
+/// The two-level kernel against trace_two_level_cpu: bit for bit (the Hit record's
+/// bytes and the instance). Returns the mismatching rays; *first_bad the first
+/// (-1 if none), *within_ulps how many of them still lie within kKernelUlpBound with
+/// the same prim and instance (to tell rounding from a traversal bug in a report).
+inline uint64_t compare_bitwise(const std::vector<Hit>& hits, const std::vector<uint32_t>& inst,
+                                const std::vector<Hit>& ref, const std::vector<uint32_t>& ref_inst,
+                                int64_t* first_bad, uint64_t* within_ulps) {
+    uint64_t bad = 0, near = 0;
+    int64_t first = -1;
+    for (size_t i = 0; i < ref.size(); ++i) {
+        if (std::memcmp(&hits[i], &ref[i], sizeof(Hit)) == 0 && inst[i] == ref_inst[i]) continue;
+        ++bad;
+        if (first < 0) first = int64_t(i);
+        if (hits[i].prim == ref[i].prim && inst[i] == ref_inst[i] &&
+            ulp_distance(hits[i].t, ref[i].t) <= kKernelUlpBound)
+            ++near;
+    }
+    if (first_bad) *first_bad = first;
+    if (within_ulps) *within_ulps = near;
+    return bad;
 }
 
 }  // namespace cwbvh
