@@ -48,7 +48,7 @@ done
 # Libraries some of these open at run time (dlopen) rather than link: oneTBB's
 # allocator proxy. Added when present so --inhibit-cache never reaches for the host's.
 for extra in libtbbmalloc.so.2; do
-  p=$(ldconfig -p | awk -v n="$extra" '$1 == n && /x86-64/ {print $NF; exit}')
+  p=$(ldconfig -p | awk -v n="$extra" '$1 == n && /x86-64/ && !found {print $NF; found = 1}')  # no early exit: under pipefail a SIGPIPE'd ldconfig failed the script (exit 141)
   [[ -n "$p" ]] && cp "$(readlink -f "$p")" "$b/lib/$extra"
 done
 cat > "$b/cwbvhc" <<EOF
