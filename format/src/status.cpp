@@ -37,6 +37,9 @@ Result fail(uint32_t rule_id, std::string message) {
 
 std::string Result::describe() const {
     if (ok()) return "ok";
+    // Rule 0: not a numbered rule of the spec (compiler input, ray files, the GPU, the
+    // deep checks D1-D7, whose message names the check): the message alone.
+    if (rule == 0) return message;
     return message + " [rule " + std::to_string(rule) + "]";
 }
 

@@ -196,7 +196,7 @@ struct [[nodiscard]] Result {
     static Result fail(Status s, uint32_t rule_id, std::string msg) {
         return {s, rule_id, std::move(msg)};
     }
-    /// "message [rule N]", or "ok".
+    /// "message [rule N]", the message alone for rule 0 (no numbered rule), or "ok".
     std::string describe() const;
 };
 
