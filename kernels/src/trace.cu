@@ -8,6 +8,7 @@
 #include "cwbvh/kernels/cuda_check.h"
 #include "cwbvh/kernels/gpu_common.h"
 #include "cwbvh/kernels/trace.h"
+#include "batched_launch.h"
 #include "kernel_table.h"
 
 namespace cwbvh {
@@ -68,76 +69,26 @@ void launch(int structure, const DeviceScene& scene, const Ray* d_rays, Hit* d_h
     if (device != scene.device())
         throw std::invalid_argument("cwbvh::trace: the current device is not the scene's device");
 
-    gpu::WorkArea* work = nullptr;
-    const size_t batches = n == 0 ? 0 : size_t((n - 1) / gpu::kMaxRaysPerLaunch + 1);
-    const size_t work_bytes = sizeof(gpu::WorkArea) * std::max<size_t>(batches, 1);
-    CWBVH_CUDA_CHECK(cudaMallocAsync(reinterpret_cast<void**>(&work), work_bytes, stream));
-    uint32_t blocks_used = 0;
-    cudaEvent_t ev[2] = {nullptr, nullptr};
-    auto destroy_events = [&]() {
-        for (cudaEvent_t& e : ev) {
-            if (e) CWBVH_CUDA_WARN(cudaEventDestroy(e));
-            e = nullptr;
-        }
-    };
-    try {
-        CWBVH_CUDA_CHECK(cudaMemsetAsync(work, 0, work_bytes, stream));
-        if (options.kernel_ms) {
-            CWBVH_CUDA_CHECK(cudaEventCreate(&ev[0]));
-            CWBVH_CUDA_CHECK(cudaEventCreate(&ev[1]));
-            CWBVH_CUDA_CHECK(cudaEventRecord(ev[0], stream));
-        }
-        for (size_t b = 0; b < batches; ++b) {
-            const size_t first = b * gpu::kMaxRaysPerLaunch;
-            const uint32_t count = uint32_t(std::min<uint64_t>(n - first, gpu::kMaxRaysPerLaunch));
-            gpu::LaunchParams p{};
-            p.nodes = scene.nodes();
-            p.bvh2 = scene.bvh2();
-            p.tris = scene.triangles();
-            p.node_count = structure == 0 ? scene.node_count() : scene.bvh2_count();
-            p.tri_count = scene.triangle_count();
-            p.rays = d_rays + first;
-            p.hits = d_hits + first;
-            p.status = options.d_status ? options.d_status + first : nullptr;
-            p.ray_count = count;
-            p.work = work + b;
-            p.node_scale = scene.node_scale();
-            uint32_t blocks = options.blocks ? options.blocks : persistent_blocks(device, k, counting);
-            const uint32_t needed = (count + uint32_t(kernel.block_threads) - 1) / uint32_t(kernel.block_threads);
-            blocks = std::min(blocks, needed);
-            blocks_used = std::max(blocks_used, blocks);
-            kernel_fn(k, counting)<<<blocks, kernel.block_threads, 0, stream>>>(p);
-            CWBVH_CUDA_CHECK(cudaGetLastError());
-        }
-        if (options.kernel_ms) {
-            CWBVH_CUDA_CHECK(cudaEventRecord(ev[1], stream));
-            CWBVH_CUDA_CHECK(cudaEventSynchronize(ev[1]));
-            CWBVH_CUDA_CHECK(cudaEventElapsedTime(options.kernel_ms, ev[0], ev[1]));
-            destroy_events();
-        }
-        if (options.stats) {
-            DeviceTraceStats s;
-            s.rays = n;
-            s.blocks = blocks_used;
-            s.threads_per_block = uint32_t(kernel.block_threads);
-            for (size_t b = 0; b < std::max<size_t>(batches, 1); ++b) {
-                gpu::WorkArea w{};
-                CWBVH_CUDA_CHECK(cudaMemcpyAsync(&w, work + b, sizeof(w), cudaMemcpyDeviceToHost, stream));
-                CWBVH_CUDA_CHECK(cudaStreamSynchronize(stream));
-                s.nodes_visited += w.nodes;
-                s.triangles_tested += w.triangles;
-                s.invalid_rays += w.invalid;
-                s.stack_overflows += w.overflows;
-                s.bad_indices += w.bad_indices;
-            }
-            *options.stats = s;
-        }
-    } catch (...) {
-        destroy_events();
-        CWBVH_CUDA_WARN(cudaFreeAsync(work, stream));
-        throw;
-    }
-    CWBVH_CUDA_CHECK(cudaFreeAsync(work, stream));
+    gpu::run_batched(n, stream, options, uint32_t(kernel.block_threads),
+                     [&](size_t first, uint32_t count, gpu::WorkArea* work) {
+                         gpu::LaunchParams p{};
+                         p.nodes = scene.nodes();
+                         p.bvh2 = scene.bvh2();
+                         p.tris = scene.triangles();
+                         p.node_count = structure == 0 ? scene.node_count() : scene.bvh2_count();
+                         p.tri_count = scene.triangle_count();
+                         p.rays = d_rays + first;
+                         p.hits = d_hits + first;
+                         p.status = options.d_status ? options.d_status + first : nullptr;
+                         p.ray_count = count;
+                         p.work = work;
+                         p.node_scale = scene.node_scale();
+                         const uint32_t blocks =
+                             gpu::launch_blocks(persistent_blocks(device, k, counting), options, count,
+                                                uint32_t(kernel.block_threads));
+                         kernel_fn(k, counting)<<<blocks, kernel.block_threads, 0, stream>>>(p);
+                         return blocks;
+                     });
 }
 
 }  // namespace

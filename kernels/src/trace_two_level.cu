@@ -23,6 +23,7 @@
 #include "cwbvh/kernels/gpu_stack.h"
 #include "cwbvh/kernels/trace.h"
 #include "cwbvh/kernels/traverse_two_level.h"
+#include "batched_launch.h"
 
 namespace cwbvh {
 namespace gpu {
@@ -120,78 +121,25 @@ void trace_two_level(const DeviceScene& scene, const Ray* d_rays, Hit* d_hits, u
     const bool counting = options.stats != nullptr;
     const gpu::TwoLevelKernelFn fn = gpu::two_level_kernel(options.test, query, counting);
 
-    gpu::WorkArea* work = nullptr;
-    const size_t batches = n == 0 ? 0 : size_t((n - 1) / gpu::kMaxRaysPerLaunch + 1);
-    const size_t work_bytes = sizeof(gpu::WorkArea) * std::max<size_t>(batches, 1);
-    CWBVH_CUDA_CHECK(cudaMallocAsync(reinterpret_cast<void**>(&work), work_bytes, stream));
-    cudaEvent_t ev[2] = {nullptr, nullptr};
-    auto destroy_events = [&]() {
-        for (cudaEvent_t& e : ev) {
-            if (e) CWBVH_CUDA_WARN(cudaEventDestroy(e));
-            e = nullptr;
-        }
-    };
-    try {
-        CWBVH_CUDA_CHECK(cudaMemsetAsync(work, 0, work_bytes, stream));
-        int sms = 0, per_sm = 0;
-        CWBVH_CUDA_CHECK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, device));
-        CWBVH_CUDA_CHECK(
-            cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, fn, gpu::kTwoLevelBlockThreads, 0));
-        const uint32_t persistent = uint32_t(std::max(1, sms * std::max(1, per_sm)));
-        uint32_t blocks_used = 0;
-        if (options.kernel_ms) {
-            CWBVH_CUDA_CHECK(cudaEventCreate(&ev[0]));
-            CWBVH_CUDA_CHECK(cudaEventCreate(&ev[1]));
-            CWBVH_CUDA_CHECK(cudaEventRecord(ev[0], stream));
-        }
-        for (size_t b = 0; b < batches; ++b) {
-            const size_t first = b * gpu::kMaxRaysPerLaunch;
-            const uint32_t count = uint32_t(std::min<uint64_t>(n - first, gpu::kMaxRaysPerLaunch));
-            gpu::TwoLevelLaunchParams p{};
-            p.scene = scene.two_level();
-            p.rays = d_rays + first;
-            p.hits = d_hits + first;
-            p.instances = d_instances ? d_instances + first : nullptr;
-            p.status = options.d_status ? options.d_status + first : nullptr;
-            p.ray_count = count;
-            p.work = work + b;
-            uint32_t blocks = options.blocks ? options.blocks : persistent;
-            const uint32_t needed = (count + uint32_t(gpu::kTwoLevelBlockThreads) - 1) /
-                                    uint32_t(gpu::kTwoLevelBlockThreads);
-            blocks = std::min(blocks, needed);
-            blocks_used = std::max(blocks_used, blocks);
-            fn<<<blocks, gpu::kTwoLevelBlockThreads, 0, stream>>>(p);
-            CWBVH_CUDA_CHECK(cudaGetLastError());
-        }
-        if (options.kernel_ms) {
-            CWBVH_CUDA_CHECK(cudaEventRecord(ev[1], stream));
-            CWBVH_CUDA_CHECK(cudaEventSynchronize(ev[1]));
-            CWBVH_CUDA_CHECK(cudaEventElapsedTime(options.kernel_ms, ev[0], ev[1]));
-            destroy_events();
-        }
-        if (options.stats) {
-            DeviceTraceStats s;
-            s.rays = n;
-            s.blocks = blocks_used;
-            s.threads_per_block = uint32_t(gpu::kTwoLevelBlockThreads);
-            for (size_t b = 0; b < std::max<size_t>(batches, 1); ++b) {
-                gpu::WorkArea w{};
-                CWBVH_CUDA_CHECK(cudaMemcpyAsync(&w, work + b, sizeof(w), cudaMemcpyDeviceToHost, stream));
-                CWBVH_CUDA_CHECK(cudaStreamSynchronize(stream));
-                s.nodes_visited += w.nodes;
-                s.triangles_tested += w.triangles;
-                s.invalid_rays += w.invalid;
-                s.stack_overflows += w.overflows;
-                s.bad_indices += w.bad_indices;
-            }
-            *options.stats = s;
-        }
-    } catch (...) {
-        destroy_events();
-        CWBVH_CUDA_WARN(cudaFreeAsync(work, stream));
-        throw;
-    }
-    CWBVH_CUDA_CHECK(cudaFreeAsync(work, stream));
+    int sms = 0, per_sm = 0;
+    CWBVH_CUDA_CHECK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, device));
+    CWBVH_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, fn, gpu::kTwoLevelBlockThreads, 0));
+    const uint32_t persistent = uint32_t(std::max(1, sms * std::max(1, per_sm)));
+    gpu::run_batched(n, stream, options, uint32_t(gpu::kTwoLevelBlockThreads),
+                     [&](size_t first, uint32_t count, gpu::WorkArea* work) {
+                         gpu::TwoLevelLaunchParams p{};
+                         p.scene = scene.two_level();
+                         p.rays = d_rays + first;
+                         p.hits = d_hits + first;
+                         p.instances = d_instances ? d_instances + first : nullptr;
+                         p.status = options.d_status ? options.d_status + first : nullptr;
+                         p.ray_count = count;
+                         p.work = work;
+                         const uint32_t blocks = gpu::launch_blocks(persistent, options, count,
+                                                                    uint32_t(gpu::kTwoLevelBlockThreads));
+                         fn<<<blocks, gpu::kTwoLevelBlockThreads, 0, stream>>>(p);
+                         return blocks;
+                     });
 }
 
 }  // namespace cwbvh
