@@ -40,22 +40,9 @@ SceneBounds scene_bounds(const Aabb& box) {
 }
 
 BuildInfo build_info(const EmitInput& in, const EmitResult& out) {
-    BuildInfo info{};
     const Scene& scene = *in.scene;
-    info.builder = in.options->builder;
-    info.collapse = in.collapse->kind;
-    info.split_alpha = in.sbvh->split_alpha;
-    info.cost_node = in.collapse->cost_node;
-    info.cost_prim = in.collapse->cost_prim;
-    info.max_leaf_triangles = uint32_t(in.collapse->max_leaf);
-    info.input_triangles = scene.input_triangles;
-    auto count = [](const std::map<std::string, uint64_t>& m, const char* key) {
-        const auto it = m.find(key);
-        return it == m.end() ? uint64_t(0) : it->second;
-    };
-    info.dropped_nonfinite = count(scene.dropped, "nonfinite");
-    info.dropped_degenerate = count(scene.dropped, "degenerate");
-    for (const auto& [kind, n] : scene.skipped_primitives) info.skipped_primitives += n;
+    BuildInfo info = build_info_head(in.options->builder, *in.sbvh, *in.collapse, scene.input_triangles,
+                                     scene.dropped, scene.skipped_primitives);
     info.triangles = scene.triangle_count();
     info.references = in.references;
     info.binary_nodes = in.binary_nodes;
@@ -67,6 +54,27 @@ BuildInfo build_info(const EmitInput& in, const EmitResult& out) {
 }
 
 }  // namespace
+
+BuildInfo build_info_head(uint32_t builder, const SbvhConfig& sbvh, const CollapseConfig& collapse,
+                          uint64_t input_triangles, const std::map<std::string, uint64_t>& dropped,
+                          const std::map<std::string, uint64_t>& skipped_primitives) {
+    BuildInfo info{};
+    info.builder = builder;
+    info.collapse = collapse.kind;
+    info.split_alpha = sbvh.split_alpha;
+    info.cost_node = collapse.cost_node;
+    info.cost_prim = collapse.cost_prim;
+    info.max_leaf_triangles = uint32_t(collapse.max_leaf);
+    info.input_triangles = input_triangles;
+    const auto count = [&](const char* key) {
+        const auto it = dropped.find(key);
+        return it == dropped.end() ? uint64_t(0) : it->second;
+    };
+    info.dropped_nonfinite = count("nonfinite");
+    info.dropped_degenerate = count("degenerate");
+    for (const auto& [kind, n] : skipped_primitives) info.skipped_primitives += n;
+    return info;
+}
 
 Aabb scene_box(const Scene& scene) {
     // Min/max are exact: any partition gives the same box. The join grows by

@@ -319,20 +319,8 @@ Result compile_two_level(const InstancedScene& scene, const CoreOptions& options
         out.bounds.hi[a] = world.hi[a];
     }
     BuildInfo& info = out.build_info;
-    info.builder = options.emit.builder;
-    info.collapse = options.collapse.kind;
-    info.split_alpha = options.sbvh.split_alpha;
-    info.cost_node = options.collapse.cost_node;
-    info.cost_prim = options.collapse.cost_prim;
-    info.max_leaf_triangles = uint32_t(options.collapse.max_leaf);
-    info.input_triangles = scene.input_triangles;
-    auto count = [](const std::map<std::string, uint64_t>& m, const char* key) {
-        const auto it = m.find(key);
-        return it == m.end() ? uint64_t(0) : it->second;
-    };
-    info.dropped_nonfinite = count(scene.dropped, "nonfinite");
-    info.dropped_degenerate = count(scene.dropped, "degenerate");
-    for (const auto& [kind, n] : scene.skipped_primitives) info.skipped_primitives += n;
+    info = build_info_head(options.emit.builder, options.sbvh, options.collapse, scene.input_triangles, scene.dropped,
+                           scene.skipped_primitives);
     info.triangles = scene.distinct_triangles();
     info.references = out.references;
     info.binary_nodes = out.binary_nodes;

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <span>
 #include <functional>
+#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -65,6 +66,12 @@ struct EmitResult {
     uint32_t max_leaf_triangles = 0;
     double sah_wide = 0;
 };
+
+/// BILD's build parameters and import counts (everything before `triangles`), one
+/// place for single-level files (emit.cpp) and two-level ones (two_level.cpp).
+BuildInfo build_info_head(uint32_t builder, const SbvhConfig& sbvh, const CollapseConfig& collapse,
+                          uint64_t input_triangles, const std::map<std::string, uint64_t>& dropped,
+                          const std::map<std::string, uint64_t>& skipped_primitives);
 
 /// The bounding box of the scene's stored triangles (empty box for no triangles):
 /// the BNDS section and the root area of the SAH report.
