@@ -205,13 +205,21 @@ bool diffuse_ray(const Ray& in, const Hit& hit, const TriangleRecord& tri, uint3
     return ray_is_traceable(out);
 }
 
-DiffuseRays diffuse_rays(const CwbvhNode* nodes, size_t node_count, const TriangleRecord* tris, size_t tri_count,
-                         const std::vector<Ray>& primary, uint32_t bounces, uint32_t seed, unsigned threads) {
-    const PrimTable table(tris, tri_count);
+namespace {
+/// Bounce 0 of every path: the primary rays, path i = ray i.
+DiffuseRays start_paths(const std::vector<Ray>& primary) {
     DiffuseRays cur;
     cur.rays = primary;
     cur.path.resize(primary.size());
     for (size_t i = 0; i < primary.size(); ++i) cur.path[i] = uint32_t(i);
+    return cur;
+}
+}  // namespace
+
+DiffuseRays diffuse_rays(const CwbvhNode* nodes, size_t node_count, const TriangleRecord* tris, size_t tri_count,
+                         const std::vector<Ray>& primary, uint32_t bounces, uint32_t seed, unsigned threads) {
+    const PrimTable table(tris, tri_count);
+    DiffuseRays cur = start_paths(primary);
     CpuTraceOptions opt;
     opt.threads = threads;
     std::vector<Hit> hits;
@@ -275,10 +283,7 @@ DiffuseRays next_bounce(const TwoLevelScene& scene, const PrimTable& table, cons
 DiffuseRays diffuse_rays(const TwoLevelScene& scene, const std::vector<Ray>& primary, uint32_t bounces,
                          uint32_t seed, unsigned threads) {
     const PrimTable table(scene.tris, scene.tri_count);
-    DiffuseRays cur;
-    cur.rays = primary;
-    cur.path.resize(primary.size());
-    for (size_t i = 0; i < primary.size(); ++i) cur.path[i] = uint32_t(i);
+    DiffuseRays cur = start_paths(primary);
     CpuTraceOptions opt;
     opt.threads = threads;
     std::vector<Hit> hits;
