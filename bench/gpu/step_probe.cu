@@ -21,7 +21,22 @@ __global__ void probe_cwbvh_node(const CwbvhNode* nodes, const Ray* rays, uint32
     CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x), scale);
     l.nray.zero_axes = 0;
     l.nray.fast = kFast ? 1u : 0u;
-    visit_node(l, gpu::load_node(nodes + out[threadIdx.x]), scale.one_bits);
+    visit_node(l, load_node_words(nodes + out[threadIdx.x]), scale.one_bits);
+    out[threadIdx.x] = l.node_group.hits ^ l.tri_group.hits ^ l.node_group.base ^ l.tri_group.base;
+}
+
+/// The node step as the kernel compiles it: the ray's set-up decides at run time which
+/// test runs (NodeRay::fast), so the loaded node feeds both. The fast path of this probe
+/// is its size minus probe_cwbvh_node<kTest, false> (the reference path alone). Sized
+/// separately because the two can differ: with a node struct of bytes shared by both
+/// tests, nvcc rebuilt every word of the fast test from bytes here (about 80
+/// instructions per step) while probe_cwbvh_node<kTest, true> stayed lean (NodeWords).
+template <TriangleTest kTest>
+__global__ void probe_cwbvh_node_dispatch(const CwbvhNode* nodes, const Ray* rays, uint32_t* out, NodeScale scale) {
+    CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x), scale);
+    l.nray.zero_axes = 0;
+    l.nray.fast = out[threadIdx.x] >> 31;
+    visit_node(l, load_node_words(nodes + (out[threadIdx.x] & 0x7FFFFFFFu)), scale.one_bits);
     out[threadIdx.x] = l.node_group.hits ^ l.tri_group.hits ^ l.node_group.base ^ l.tri_group.base;
 }
 
@@ -90,6 +105,8 @@ template __global__ void probe_cwbvh_node<TriangleTest::kWatertight, true>(const
                                                                         NodeScale);
 template __global__ void probe_cwbvh_node<TriangleTest::kWatertight, false>(const CwbvhNode*, const Ray*, uint32_t*,
                                                                          NodeScale);
+template __global__ void probe_cwbvh_node_dispatch<TriangleTest::kWatertight>(const CwbvhNode*, const Ray*, uint32_t*,
+                                                                             NodeScale);
 template __global__ void probe_triangle<TriangleTest::kWatertight>(const TriangleRecord*, const Ray*, uint32_t*);
 template __global__ void probe_triangle<TriangleTest::kFast>(const TriangleRecord*, const Ray*, uint32_t*);
 template __global__ void probe_ray_setup<TriangleTest::kWatertight>(const Ray*, uint32_t*, NodeScale);

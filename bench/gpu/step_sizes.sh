@@ -10,9 +10,13 @@
 # arithmetic (intersect_node_scalar: rays the fast test does not accept). The last
 # lines give each step net of the set-up probe. The NOPs that pad each kernel to 128
 # bytes are not counted (sm_90's NOP encoding; on another ARCH the sizes may include them).
-# usage: bench/gpu/step_sizes.sh [ARCH, default sm_90]
+# --check: also exit 1 when the kernel-shaped probe's fast path is more than 16
+# instructions above the fast probe's (a ctest where nvcc is found).
+# usage: bench/gpu/step_sizes.sh [--check] [ARCH, default sm_90]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
+check=0
+if [ "${1:-}" = "--check" ]; then check=1; shift; fi
 arch=${1:-sm_90}
 nvcc=${CUDACXX:-$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)}
 tmp=$(mktemp -d)
@@ -48,8 +52,17 @@ for k, v in net.items():
         print(f"watertight triangle test, first two stages (misses by edge or by range, in float), net of set-up: {v - tri_setup} instructions")
     elif "probe_triangle<(cwbvh::TriangleTest)0>" in k:
         print(f"watertight triangle test, whole (hit path, double fallbacks included), net of set-up: {v - tri_setup} instructions")
+reference = next(v for k, v in net.items() if "probe_cwbvh_node<" in k and "false>" in k)
+fast = next(v for k, v in net.items() if "probe_cwbvh_node<" in k and "true>" in k) - setup
+kernel_shaped = next(v for k, v in net.items() if "probe_cwbvh_node_dispatch" in k) - reference
 for k, v in net.items():
-    if "probe_cwbvh_node" in k:
+    if "probe_cwbvh_node<" in k:
         which = "fast (common path)" if "true>" in k else "reference arithmetic"
         print(f"node step, {which}, net of set-up: {v - setup} instructions")
-' "$tmp/probe.cubin"
+    elif "probe_cwbvh_node_dispatch" in k:
+        print(f"node step as the kernel compiles it (both tests present, chosen at run time), fast path "
+              f"= total - reference: {v - reference} instructions")
+if sys.argv[2] == "1" and kernel_shaped > fast + 16:
+    print(f"FAIL: the kernel-shaped fast path ({kernel_shaped}) exceeds the fast probe ({fast}) by more than 16")
+    sys.exit(1)
+' "$tmp/probe.cubin" "$check"

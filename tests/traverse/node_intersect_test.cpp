@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <random>
 #include <vector>
 
@@ -298,6 +299,44 @@ TEST(NodeIntersect, ScalarAndSimdAgreeBitForBit) {
     }
     EXPECT_EQ(differ, 0u);
     EXPECT_GT(tested, 100000u);
+}
+
+// The kernels hand the node test NodeWords (twenty words from five 16-byte loads), the
+// host the CwbvhNode: same group fields, same hit masks from both node tests.
+TEST(NodeIntersect, NodeWordsAreTheNodeAndGiveTheSameMasks) {
+    Gen g(777);
+    int fast = 0;
+    for (int iter = 0; iter < 20000; ++iter) {
+        const CwbvhNode n = random_node(g, g.irange(-8, 8));
+        CwbvhNode copy;
+        memcpy(&copy, &n, sizeof n);
+        const NodeWords w = load_node_words(&copy);
+        ASSERT_EQ(node_child_base(w), n.child_base);
+        ASSERT_EQ(node_tri_base(w), n.tri_base);
+        ASSERT_EQ(node_imask(w), uint32_t(n.imask));
+        ASSERT_EQ(memcmp(&w, &n, sizeof n), 0);
+        const CwbvhNode back = node_from_words(w);
+        ASSERT_EQ(memcmp(&back, &n, sizeof n), 0);
+        Ray r;
+        for (int a = 0; a < 3; ++a) {
+            r.dir[a] = random_dir_component(g);
+            r.org[a] = n.p[a] + std::ldexp(g.uni(-300.0f, 300.0f), n.e[a] - 127);
+        }
+        if (r.dir[0] == 0 && r.dir[1] == 0 && r.dir[2] == 0) r.dir[0] = 1.0f;
+        r.tmin = 0.0f;
+        r.tmax = g.coin() ? INFINITY : std::ldexp(g.uni(0.0f, 600.0f), n.e[0] - 127);
+        if (!ray_is_traceable(r)) continue;
+        NodeRay nr = make_node_ray(r);
+        const NodeScale sc = node_scale(&n, 1);
+        enable_fast_node_test(nr, sc, r.dir, 0.0f);
+        fast += int(nr.fast);
+        ASSERT_EQ(intersect_node_dispatch(w, nr, r.tmin, r.tmax, sc.one_bits),
+                  intersect_node_dispatch(n, nr, r.tmin, r.tmax, sc.one_bits))
+            << "iter " << iter << " fast " << nr.fast;
+        nr.fast = 0;
+        ASSERT_EQ(intersect_node_dispatch(w, nr, r.tmin, r.tmax, sc.one_bits), intersect_node(n, nr, r.tmin, r.tmax));
+    }
+    EXPECT_GT(fast, 1000);  // the words path of the fast test ran
 }
 
 TEST(NodeIntersect, MetaDecodeSetsPaperBits) {

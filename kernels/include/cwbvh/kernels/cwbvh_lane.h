@@ -98,14 +98,15 @@ CWBVH_HD CWBVH_INLINE NodeStep next_node(CwbvhLane<kTest>& l, Stack& stack, uint
 }
 
 /// Node step, second half: tests the eight child boxes of the loaded node and makes
-/// its hit children the new node and triangle groups. one_bits: the scene's
+/// its hit children the new node and triangle groups. Node: NodeWords (the kernel,
+/// load_node_words) or CwbvhNode (the host). one_bits: the scene's
 /// NodeScale::one_bits, the fast test's 1.0f (the kernel passes it from its launch
 /// parameters; see intersect_node_fast).
-template <TriangleTest kTest>
-CWBVH_HD CWBVH_INLINE void visit_node(CwbvhLane<kTest>& l, const CwbvhNode& node, uint32_t one_bits) {
+template <TriangleTest kTest, class Node>
+CWBVH_HD CWBVH_INLINE void visit_node(CwbvhLane<kTest>& l, const Node& node, uint32_t one_bits) {
     const uint32_t hitmask = intersect_node_dispatch(node, l.nray, l.tmin, l.tmax, one_bits);
-    l.node_group = StackEntry{node.child_base, (hitmask & 0xFF000000u) | node.imask};
-    l.tri_group = StackEntry{node.tri_base, hitmask & 0x00FFFFFFu};
+    l.node_group = StackEntry{node_child_base(node), (hitmask & 0xFF000000u) | node_imask(node)};
+    l.tri_group = StackEntry{node_tri_base(node), hitmask & 0x00FFFFFFu};
 }
 
 /// Triangle step, first half: takes the next triangle of the group (highest bit

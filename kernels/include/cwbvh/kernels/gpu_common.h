@@ -61,16 +61,6 @@ struct LaunchParams {
 // aligned, so they take 8 bytes at a time.
 // ---------------------------------------------------------------------------
 
-__device__ __forceinline__ CwbvhNode load_node(const CwbvhNode* p) {
-    const uint4* q = reinterpret_cast<const uint4*>(p);
-    uint4 v[5];
-#pragma unroll
-    for (int i = 0; i < 5; ++i) v[i] = __ldg(q + i);
-    CwbvhNode n;
-    memcpy(&n, v, sizeof(n));
-    return n;
-}
-
 /// Five 8-byte loads: a record is 40 bytes and record i starts at 40 * i, a
 /// multiple of 8 but not of 16 (spec 3.2: the trade-off for 40 instead of 48 bytes).
 __device__ __forceinline__ TriangleRecord load_triangle(const TriangleRecord* p) {

@@ -176,17 +176,67 @@ CWBVH_HD CWBVH_INLINE void enable_fast_node_test(NodeRay& r, const NodeScale& sc
     r.fast = (r.zero_axes == 0 && fast_node_test_applies(sc, moved, r.rcp, tmin)) ? 1u : 0u;
 }
 
+/// A CwbvhNode as the twenty 32-bit words a GPU loads (five 16-byte loads): the fast
+/// test and the kernels' group decode read these words and never the node's bytes.
+/// Why not the CwbvhNode itself: where a kernel holds one loaded node for both node
+/// tests (intersect_node_dispatch), nvcc splits the struct into its bytes for the
+/// reference arithmetic and then rebuilds every word the fast test reads from them
+/// (six instructions per word, about 80 per node step on sm_90, issue 18).
+/// Words (the layout of spec 3.3): 0-2 p, 3 e[0..2] | imask << 24, 4 child_base,
+/// 5 tri_base, 6-7 meta, 8-13 q_lo (x slots 0-3, x 4-7, y, z), 14-19 q_hi.
+struct NodeWords {
+    uint32_t w[20];
+};
+static_assert(sizeof(NodeWords) == sizeof(CwbvhNode), "NodeWords is CwbvhNode's 80 bytes");
+
+/// Node `p` as words: on the device five 16-byte loads through the read-only cache
+/// (NODE and TLAS are 16-byte aligned: 80-byte records from an aligned base); on the
+/// host a copy.
+CWBVH_HD CWBVH_INLINE NodeWords load_node_words(const CwbvhNode* p) {
+    NodeWords n;
+#if defined(__CUDA_ARCH__)
+    const uint4* q = reinterpret_cast<const uint4*>(p);
+    CWBVH_UNROLL
+    for (int i = 0; i < 5; ++i) {
+        const uint4 v = __ldg(q + i);
+        n.w[4 * i + 0] = v.x;
+        n.w[4 * i + 1] = v.y;
+        n.w[4 * i + 2] = v.z;
+        n.w[4 * i + 3] = v.w;
+    }
+#else
+    memcpy(&n, p, sizeof n);
+#endif
+    return n;
+}
+CWBVH_HD CWBVH_INLINE NodeWords node_words(const CwbvhNode& n) {
+    NodeWords w;
+    memcpy(&w, &n, sizeof w);
+    return w;
+}
+CWBVH_HD CWBVH_INLINE CwbvhNode node_from_words(const NodeWords& w) {
+    CwbvhNode n;
+    memcpy(&n, &w, sizeof n);
+    return n;
+}
+/// The group fields (traverse.h's node step), from either form of a node.
+CWBVH_HD CWBVH_INLINE uint32_t node_child_base(const CwbvhNode& n) { return n.child_base; }
+CWBVH_HD CWBVH_INLINE uint32_t node_tri_base(const CwbvhNode& n) { return n.tri_base; }
+CWBVH_HD CWBVH_INLINE uint32_t node_imask(const CwbvhNode& n) { return n.imask; }
+CWBVH_HD CWBVH_INLINE uint32_t node_child_base(const NodeWords& n) { return n.w[4]; }
+CWBVH_HD CWBVH_INLINE uint32_t node_tri_base(const NodeWords& n) { return n.w[5]; }
+CWBVH_HD CWBVH_INLINE uint32_t node_imask(const NodeWords& n) { return n.w[3] >> 24; }
+
 /// The fast node test (see the file comment). octinv and the plane rows as in
 /// intersect_node_scalar; tmin is in the moved origin (enable_fast_node_test). one: the
 /// scene's NodeScale::one_bits, the bits of 1.0f from somewhere the compiler cannot see
 /// through (see plane_unit): the kernel passes its launch parameter, in the constant bank,
 /// which takes no register.
-CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const NodeRay& r, float tmax, uint32_t one) {
-    uint32_t lo_w[6], hi_w[6], meta_w[2], e_w;
-    memcpy(lo_w, n.q_lo, sizeof lo_w);
-    memcpy(hi_w, n.q_hi, sizeof hi_w);
-    memcpy(meta_w, n.meta, sizeof meta_w);
-    memcpy(&e_w, n.e, sizeof e_w);
+CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const NodeWords& n, const NodeRay& r, float tmax, uint32_t one) {
+    const uint32_t* lo_w = n.w + 8;
+    const uint32_t* hi_w = n.w + 14;
+    const uint32_t* meta_w = n.w + 6;
+    const uint32_t e_w = n.w[3];
     float J[3], on[3], of[3];
     uint32_t near_w[6], far_w[6];
     CWBVH_UNROLL
@@ -194,9 +244,9 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const Nod
         // 2^15 * 2^(e-127) as bits: (e + 15) << 23 (e <= kFastMaxExponent: no carry out).
         const uint32_t e = (e_w >> (8 * a)) & 0xFFu;
         const float scale = bits_to_float(e * 0x00800000u + (15u << 23));
-        J[a] = mul_rn(scale, r.rcp[a]);                            // exact
-        const float O = fma_rn(n.p[a], r.rcp[a], r.norcp[a]);      // RN(p rcp - RN(o' rcp))
-        const float Op = sub_rn(O, J[a]);                           // RN(O - J)
+        J[a] = mul_rn(scale, r.rcp[a]);                                  // exact
+        const float O = fma_rn(bits_to_float(n.w[a]), r.rcp[a], r.norcp[a]);  // RN(p rcp - RN(o' rcp))
+        const float Op = sub_rn(O, J[a]);                                 // RN(O - J)
         const float S = fma_rn(1.03125f, abs_fm(J[a]), add_rn(abs_fm(O), abs_fm(r.norcp[a])));
         on[a] = fma_rn(S, -9.5367431640625e-07f, Op);  // O' - 2^-20 S
         of[a] = fma_rn(S, 9.5367431640625e-07f, Op);   // O' + 2^-20 S
@@ -239,12 +289,28 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const Nod
     return hitmask;
 }
 
+/// The fast test on a node in its struct form (the host: tests, the CPU traversal).
+CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const NodeRay& r, float tmax, uint32_t one) {
+    return intersect_node_fast(node_words(n), r, tmax, one);
+}
+
 /// The node test a traversal runs on `r`: intersect_node_fast where the ray's set-up
 /// enabled it (r.fast) on sm_90 and later, the reference arithmetic otherwise. Before
 /// sm_90 the three-input integer min/max of the fast test are emulated (several
 /// instructions each) and the kernels would spill (sm_75): reference arithmetic. On the
 /// host r.fast selects too (the warp model and the tests run what the kernel runs).
-/// one: NodeScale::one_bits (see plane_unit).
+/// one: NodeScale::one_bits (see plane_unit). The kernels pass NodeWords (see there),
+/// the host CPU traversal the node in place.
+CWBVH_HD CWBVH_INLINE uint32_t intersect_node_dispatch(const NodeWords& n, const NodeRay& r, float tmin, float tmax,
+                                                       uint32_t one) {
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 900
+    (void)one;
+    return intersect_node(node_from_words(n), r, tmin, tmax);
+#else
+    if (r.fast) return intersect_node_fast(n, r, tmax, one);
+    return intersect_node(node_from_words(n), r, tmin, tmax);
+#endif
+}
 CWBVH_HD CWBVH_INLINE uint32_t intersect_node_dispatch(const CwbvhNode& n, const NodeRay& r, float tmin, float tmax,
                                                        uint32_t one) {
 #if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 900

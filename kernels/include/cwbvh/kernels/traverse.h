@@ -113,11 +113,15 @@ CWBVH_HD CWBVH_STEP_INLINE TraceStatus cwbvh_node_step(StackEntry& node_group, S
     const uint32_t slot = (uint32_t(bit) - 24u) ^ nray.octinv;
     const uint32_t index = base + uint32_t(popcount32(imask & ((1u << slot) - 1u)));
     if (index >= node_count) return TraceStatus::kBadIndex;
+#if defined(__CUDA_ARCH__)
+    const NodeWords node = load_node_words(nodes + index);  // words, not bytes (NodeWords)
+#else
     const CwbvhNode& node = nodes[index];
+#endif
     ++n_nodes;
     const uint32_t hitmask = intersect_node_dispatch(node, nray, tmin, tmax, one_bits);
-    node_group = StackEntry{node.child_base, (hitmask & 0xFF000000u) | node.imask};
-    tri_group = StackEntry{node.tri_base, hitmask & 0x00FFFFFFu};
+    node_group = StackEntry{node_child_base(node), (hitmask & 0xFF000000u) | node_imask(node)};
+    tri_group = StackEntry{node_tri_base(node), hitmask & 0x00FFFFFFu};
     return TraceStatus::kOk;
 }
 

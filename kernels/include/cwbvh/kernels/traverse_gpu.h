@@ -130,7 +130,7 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                 const NodeStep step = next_node(l, stack, p.node_count, index);
                 if (step == NodeStep::kVisit) {
                     if (kCount) ++s_counts[0][threadIdx.x];
-                    visit_node(l, load_node(p.nodes + index), p.node_scale.one_bits);
+                    visit_node(l, load_node_words(p.nodes + index), p.node_scale.one_bits);
                 } else if (step == NodeStep::kOverflow) {
                     finish(TraceStatus::kStackOverflow);
                 } else if (step == NodeStep::kBadIndex) {
