@@ -55,7 +55,8 @@ template <TriangleTest kTest, HitMode kMode, bool kCount>
 __global__ void __launch_bounds__(kTwoLevelBlockThreads, CWBVH_TWO_LEVEL_MIN_BLOCKS) two_level_trace_kernel(TwoLevelLaunchParams p) {
     __shared__ PackedEntry s_stack[kTwoLevelWarpsPerBlock][kGpuSharedStackEntries][kWarpSize];
     const unsigned lane = threadIdx.x & (kWarpSize - 1);
-    GpuStack stack(&s_stack[threadIdx.x / kWarpSize][0][lane], kWarpSize);
+    PackedEntry spill[kGpuLocalStackEntries];  // local memory, apart from the stack object (gpu_stack.h)
+    GpuStack stack(&s_stack[threadIdx.x / kWarpSize][0][lane], spill);
     uint32_t nodes = 0, tris = 0;
     for (;;) {
         unsigned base = 0;

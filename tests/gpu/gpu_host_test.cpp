@@ -24,7 +24,8 @@ namespace {
 TEST(GpuStack, SpillsPastSharedEntriesAndPopsInLifoOrder) {
     constexpr int kLanes = 32, kLane = 5;
     std::vector<PackedEntry> shared(size_t(kGpuSharedStackEntries) * kLanes, PackedEntry{0xDEADu, 0xDEADu});
-    GpuStack s(shared.data() + kLane, kLanes);
+    PackedEntry spill[kGpuLocalStackEntries];
+    GpuStack s(shared.data() + kLane, spill);
     for (uint32_t i = 0; i < uint32_t(kGpuStackEntries); ++i) ASSERT_TRUE(s.push(StackEntry{i, 0x01000000u | i}));
     EXPECT_FALSE(s.push(StackEntry{99u, 99u})) << "a full stack reports overflow instead of writing";
     // Shared entries land in this lane's column only: [entry][lane].
@@ -55,8 +56,10 @@ TEST(GpuStack, SharedLayoutIsConflictFreeForAWarpAtOneDepth) {
     // formula the layout is meant to follow.
     constexpr int kLanes = 32;
     std::vector<PackedEntry> shared(size_t(kGpuSharedStackEntries) * kLanes, PackedEntry{0u, 0u});
+    std::vector<PackedEntry> spill(size_t(kGpuLocalStackEntries) * kLanes);
     std::vector<GpuStack> stacks;
-    for (int lane = 0; lane < kLanes; ++lane) stacks.emplace_back(shared.data() + lane, kLanes);
+    for (int lane = 0; lane < kLanes; ++lane)
+        stacks.emplace_back(shared.data() + lane, spill.data() + size_t(lane) * kGpuLocalStackEntries);
     for (int depth = 0; depth < kGpuSharedStackEntries; ++depth) {
         std::vector<size_t> byte(kLanes, SIZE_MAX);
         for (int lane = 0; lane < kLanes; ++lane) {

@@ -65,7 +65,8 @@ TEST(TwoLevelGpuPath, KernelStackGivesTheReferenceHits) {
             Hit h1, h2;
             uint32_t i1 = 0, i2 = 0;
             LocalStack<kCpuStackSize> ls;
-            GpuStack gs(shared.data() + 7, 32);
+            PackedEntry spill[kGpuLocalStackEntries];
+            GpuStack gs(shared.data() + 7, spill);
             const TraceStatus s1 =
                 mode == HitMode::kAny
                     ? traverse_two_level<TriangleTest::kWatertight, HitMode::kAny>(b.view(), r, h1, i1, ls)

@@ -37,22 +37,27 @@ inline constexpr int kGpuSharedStackEntries = 12;  ///< per ray in shared memory
 inline constexpr int kGpuLocalStackEntries = 52;   ///< spill area in local memory; 64 in total
 inline constexpr int kGpuStackEntries = kGpuSharedStackEntries + kGpuLocalStackEntries;
 
+/// The spill area lives outside the stack object (`local`, the caller's array of
+/// kLocalEntries): with the array as a member, the dynamic index into it made nvcc keep
+/// the whole object in local memory, so every push, pop and empty() loaded the shared
+/// pointer, the stride and the size from local memory and stored the size back (three
+/// loads and a store per push on sm_90, issue 18). Apart, the scalars stay in registers.
 template <int kSharedEntries, int kLocalEntries>
 struct SharedSpillStack {
-    /// Entry k of this lane is shared[k * stride]: stride = lanes per warp (32) with
-    /// shared pointing at [warp][0][lane].
+    /// Entry k of this lane is shared[k * kStride]: the lanes of a warp (32) side by side,
+    /// with shared pointing at [warp][0][lane]. A constant, not a member: one register less.
+    static constexpr int kStride = 32;
     PackedEntry* shared;
-    int stride;
+    PackedEntry* local;  ///< kLocalEntries entries of spill area (local memory on the GPU)
     int size;
-    PackedEntry local[kLocalEntries];
 
-    CWBVH_HD SharedSpillStack(PackedEntry* shared_base, int lane_stride)
-        : shared(shared_base), stride(lane_stride), size(0) {}
+    CWBVH_HD SharedSpillStack(PackedEntry* shared_base, PackedEntry* local_area)
+        : shared(shared_base), local(local_area), size(0) {}
 
     CWBVH_HD bool push(StackEntry e) {
         const PackedEntry p{e.base, e.hits};
         if (size < kSharedEntries) {
-            shared[size * stride] = p;
+            shared[size * kStride] = p;
         } else if (size < kSharedEntries + kLocalEntries) {
             local[size - kSharedEntries] = p;
         } else {
@@ -64,7 +69,7 @@ struct SharedSpillStack {
     CWBVH_HD bool empty() const { return size == 0; }
     CWBVH_HD StackEntry pop() {
         --size;
-        const PackedEntry p = size < kSharedEntries ? shared[size * stride] : local[size - kSharedEntries];
+        const PackedEntry p = size < kSharedEntries ? shared[size * kStride] : local[size - kSharedEntries];
         return StackEntry{p.base, p.hits};
     }
     CWBVH_HD void clear() { size = 0; }

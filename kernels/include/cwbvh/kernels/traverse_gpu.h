@@ -70,7 +70,9 @@ __device__ __forceinline__ void count_rare(unsigned long long* total) { atomicAd
 template <TriangleTest kTest, HitMode kMode, bool kCount>
 __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, PackedEntry* warp_stack_base) {
     const unsigned lane = threadIdx.x & (kWarpSize - 1);
-    GpuStack stack(warp_stack_base + lane, kWarpSize);
+    static_assert(GpuStack::kStride == kWarpSize, "the shared stack layout is [warp][entry][lane]");
+    PackedEntry spill[kGpuLocalStackEntries];  // local memory, apart from the stack object (gpu_stack.h)
+    GpuStack stack(warp_stack_base + lane, spill);
 
     bool active = false;
     uint32_t ray_id = 0;
