@@ -4,11 +4,19 @@
 # bench/results/ptxas-<arch>.txt (or the path given), one summary line per kernel
 # after the raw ptxas output. Issue 10's budget: every production CWBVH kernel at
 # most 80 registers on sm_90 with no spill stores.
-# usage: scripts/ptxas-report.sh [ARCH (default sm_90)] [OUT]
+# --check: write to a temporary file instead and exit 1 unless every production CWBVH
+# kernel (the non-counting variants) has at most 80 registers, no spill stores and a
+# stack frame of exactly its spill area (52 entries x 8 B = 416 B: anything more is
+# per-ray state that went to local memory, as the stack object once did; issue 18).
+# A ctest where nvcc is found.
+# usage: scripts/ptxas-report.sh [--check] [ARCH (default sm_90)] [OUT]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
+check=0
+if [ "${1:-}" = "--check" ]; then check=1; shift; fi
 arch=${1:-sm_90}
 out=${2:-$root/bench/results/ptxas-$arch.txt}
+if [ "$check" = 1 ]; then out=$(mktemp); trap 'rm -f "$out"' EXIT; fi
 nvcc=${CUDACXX:-$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
@@ -40,3 +48,17 @@ for line in sys.stdin:
   cat "$tmp"/kernels_*.txt
 } > "$out"
 grep '^# ' "$out" | sed -n '4,$p'
+if [ "$check" = 1 ]; then
+  grep '^# cwbvh_trace_kernel<.*false>' "$out" | python3 -c '
+import re, sys
+bad = 0
+lines = sys.stdin.read().splitlines()
+for line in lines:
+    m = re.search(r"(\d+) regs\s+spill (\d+)/(\d+) B\s+stack (\d+) B", line)
+    regs, st, ld, frame = map(int, m.groups())
+    if regs > 80 or st or ld or frame != 416:
+        print("FAIL:", line.strip("# ")); bad += 1
+if len(lines) != 4: print("FAIL: expected 4 production CWBVH kernels, found", len(lines)); bad += 1
+sys.exit(1 if bad else 0)
+'
+fi
