@@ -19,8 +19,7 @@ __global__ void probe_empty(const uint32_t* in, uint32_t* out) { out[threadIdx.x
 template <TriangleTest kTest, bool kFast>
 __global__ void probe_cwbvh_node(const CwbvhNode* nodes, const Ray* rays, uint32_t* out, NodeScale scale) {
     CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x), scale);
-    l.nray.zero_axes = 0;
-    l.nray.fast = kFast ? 1u : 0u;
+    l.nray.zero_axes = kFast ? NodeRay::kFastBit : 0u;
     visit_node(l, load_node_words(nodes + out[threadIdx.x]), scale.one_bits);
     out[threadIdx.x] = l.node_group.hits ^ l.tri_group.hits ^ l.node_group.base ^ l.tri_group.base;
 }
@@ -34,8 +33,7 @@ __global__ void probe_cwbvh_node(const CwbvhNode* nodes, const Ray* rays, uint32
 template <TriangleTest kTest>
 __global__ void probe_cwbvh_node_dispatch(const CwbvhNode* nodes, const Ray* rays, uint32_t* out, NodeScale scale) {
     CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x), scale);
-    l.nray.zero_axes = 0;
-    l.nray.fast = out[threadIdx.x] >> 31;
+    l.nray.zero_axes = out[threadIdx.x] & NodeRay::kFastBit;
     visit_node(l, load_node_words(nodes + (out[threadIdx.x] & 0x7FFFFFFFu)), scale.one_bits);
     out[threadIdx.x] = l.node_group.hits ^ l.tri_group.hits ^ l.node_group.base ^ l.tri_group.base;
 }
@@ -75,7 +73,9 @@ __global__ void probe_triangle_range(const TriangleRecord* tris, const Ray* rays
 /// from the triangle probes, which hold it too.
 __global__ void probe_triangle_setup(const Ray* rays, uint32_t* out) {
     const WatertightRay w = make_watertight_ray(gpu::load_ray(rays + threadIdx.x));
-    out[threadIdx.x] = __float_as_uint(w.ox + w.oy + w.oz + w.dx + w.dy + w.dz + w.sx + w.sy) ^ w.k;
+    float sum = 0.0f;
+    for (int a = 0; a < 3; ++a) sum += w.org[a] + w.dir[a] + w.mx[a] + w.my[a];
+    out[threadIdx.x] = __float_as_uint(sum);
 }
 
 /// Per-ray set-up (ray load, NodeRay, triangle-test constants).

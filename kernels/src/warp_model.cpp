@@ -147,7 +147,7 @@ private:
             const NodeStep step = next_node(lane.l, lane.stack, node_count_, index);
             if (step == NodeStep::kVisit) {
                 ++visiting;
-                s_.lane_fast_node_steps += lane.l.nray.fast;
+                s_.lane_fast_node_steps += lane.l.nray.uses_fast_test() ? 1u : 0u;
                 visit_node(lane.l, nodes_[index], scale_.one_bits);
             } else if (step == NodeStep::kOverflow) {
                 finish(lane, TraceStatus::kStackOverflow);

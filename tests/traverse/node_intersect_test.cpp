@@ -169,7 +169,7 @@ void check_never_misses(Which which, uint64_t seed) {
             const float tmin = r.tmin == 0.0f ? 0.0f : r.tmin;
             const NodeScale sc = node_scale(&n, 1);
             enable_fast_node_test(nr, sc, r.dir, tmin);
-            if (!nr.fast) continue;
+            if (!nr.uses_fast_test()) continue;
             ++fast_rays;
             mask = intersect_node_fast(n, nr, r.tmax, sc.one_bits);
         } else {
@@ -251,7 +251,7 @@ TEST(NodeIntersect, NodeScaleBoundsEveryNodeAndRefusesWhatTheFastTestCannotExpre
     auto fast = [&](Ray r, float tmin) {
         NodeRay nr = make_node_ray(r);
         enable_fast_node_test(nr, sc, r.dir, tmin);
-        return nr.fast == 1u;
+        return nr.uses_fast_test();
     };
     EXPECT_TRUE(fast(ok, 0.0f));
     EXPECT_TRUE(fast(ok, 2.5f));
@@ -329,11 +329,11 @@ TEST(NodeIntersect, NodeWordsAreTheNodeAndGiveTheSameMasks) {
         NodeRay nr = make_node_ray(r);
         const NodeScale sc = node_scale(&n, 1);
         enable_fast_node_test(nr, sc, r.dir, 0.0f);
-        fast += int(nr.fast);
+        fast += int(nr.uses_fast_test());
         ASSERT_EQ(intersect_node_dispatch(w, nr, r.tmin, r.tmax, sc.one_bits),
                   intersect_node_dispatch(n, nr, r.tmin, r.tmax, sc.one_bits))
-            << "iter " << iter << " fast " << nr.fast;
-        nr.fast = 0;
+            << "iter " << iter << " fast " << nr.uses_fast_test();
+        nr.zero_axes = nr.zero_axis_bits();
         ASSERT_EQ(intersect_node_dispatch(w, nr, r.tmin, r.tmax, sc.one_bits), intersect_node(n, nr, r.tmin, r.tmax));
     }
     EXPECT_GT(fast, 1000);  // the words path of the fast test ran

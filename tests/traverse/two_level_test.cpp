@@ -406,7 +406,7 @@ TEST(TwoLevel, FastNodeTestGivesTheReferenceHits) {
     for (const Ray& r : rays) {
         NodeRay n = make_node_ray(r);
         enable_fast_node_test(n, scale, r.dir, r.tmin == 0.0f ? 0.0f : r.tmin);
-        enabled += n.fast;
+        enabled += n.uses_fast_test() ? 1 : 0;
     }
     EXPECT_GT(enabled, rays.size() * 9 / 10);
     // A scene constant that cannot hold for TLAS (usable 0) turns the fast test off.

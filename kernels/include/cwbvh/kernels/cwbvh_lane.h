@@ -125,7 +125,8 @@ CWBVH_HD CWBVH_INLINE uint32_t next_triangle(CwbvhLane<kTest>& l, uint32_t tri_c
 template <TriangleTest kTest>
 CWBVH_HD CWBVH_INLINE bool test_triangle(CwbvhLane<kTest>& l, const TriangleRecord& tri, uint32_t ti) {
     TriangleHit th;
-    if (!l.tri_test(tri, l.tmin, l.tmax, th)) return false;
+    // with_org: the origin from nray (the same values; one copy in registers).
+    if (!l.tri_test.with_org(l.nray.org)(tri, l.tmin, l.tmax, th)) return false;
     l.tmax = th.t;
     l.hit_tri = ti;
     return true;
@@ -157,7 +158,7 @@ CWBVH_HD CWBVH_INLINE bool pop_if_idle(CwbvhLane<kTest>& l, Stack& stack) {
 template <TriangleTest kTest>
 CWBVH_HD CWBVH_INLINE Hit lane_hit(const CwbvhLane<kTest>& l, const TriangleRecord& tri) {
     TriangleHit th;
-    if (l.hit_tri == kNoTriangle || !l.tri_test(tri, l.tmin, kInfinity, th)) return make_miss();
+    if (l.hit_tri == kNoTriangle || !l.tri_test.with_org(l.nray.org)(tri, l.tmin, kInfinity, th)) return make_miss();
     return Hit{th.t, th.u, th.v, tri.prim};
 }
 

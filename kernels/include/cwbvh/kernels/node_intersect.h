@@ -46,14 +46,19 @@ struct NodeRay {
     float rcp[3];        ///< RN(1/dir): +-inf for dir = +-0 and for |dir| < ~2^-128
     float rcp_pad;       ///< 0 (same reason; a garbage lane could be a slow subnormal)
     uint32_t octinv;     ///< 7 - octant; octant bit 2 = x<0, bit 1 = y<0, bit 0 = z<0
-    uint32_t zero_axes;  ///< bit a set: dir[a] == +-0 (slab test becomes "origin inside")
+    /// Bit a (0-2) set: dir[a] == +-0 (slab test becomes "origin inside"). Bit 31
+    /// (kFastBit): this ray uses intersect_node_fast (enable_fast_node_test; only rays
+    /// without zero axes do). One register for both on the GPU.
+    uint32_t zero_axes;
+    static constexpr uint32_t kFastBit = 0x80000000u;
+    CWBVH_HD bool uses_fast_test() const { return (zero_axes & kFastBit) != 0; }
+    CWBVH_HD uint32_t zero_axis_bits() const { return zero_axes & 7u; }
     /// Per axis: all ones when dir[a] < 0 (near plane = q_hi), else 0. Host SIMD
     /// code swaps the q_lo/q_hi plane words with it; device code derives it from octinv.
     uint64_t swap[3];
-    /// For intersect_node_fast (node_intersect_fast.h): -RN(o' * rcp) per axis, and
-    /// whether this ray may use it (enable_fast_node_test; 0 from make_node_ray).
+    /// For intersect_node_fast (node_intersect_fast.h): -RN(o' * rcp) per axis
+    /// (enable_fast_node_test; 0 from make_node_ray).
     float norcp[3];
-    uint32_t fast;
 };
 
 CWBVH_HD CWBVH_INLINE NodeRay make_node_ray(const Ray& r) {
@@ -79,7 +84,6 @@ CWBVH_HD CWBVH_INLINE NodeRay make_node_ray(const Ray& r) {
         n.norcp[a] = 0.0f;  // enable_fast_node_test
     }
     n.octinv = 7u - octant;
-    n.fast = 0u;
     return n;
 }
 
@@ -226,7 +230,7 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_scalar(const CwbvhNode& n, const N
         // Empty slots need no test here: their meta byte is 0, so they add no bits below.
         slots |= uint32_t(tnear <= tfar) << s;
     }
-    if (r.zero_axes != 0 && slots != 0) slots = zero_axes_filter(n, r, slots);
+    if (r.zero_axis_bits() != 0 && slots != 0) slots = zero_axes_filter(n, r, slots);
     return meta_hit_bits(meta_w, r.octinv, slots);
 }
 
@@ -280,7 +284,7 @@ inline uint32_t intersect_node_sse(const CwbvhNode& n, const NodeRay& r, float t
     const uint32_t box_hits = uint32_t(_mm_movemask_ps(_mm_cmple_ps(tn0, tf0))) |
                               (uint32_t(_mm_movemask_ps(_mm_cmple_ps(tn1, tf1))) << 4);
     uint32_t slots = box_hits;
-    if (r.zero_axes != 0 && slots != 0) slots = zero_axes_filter(n, r, slots);
+    if (r.zero_axis_bits() != 0 && slots != 0) slots = zero_axes_filter(n, r, slots);
     uint32_t meta_w[2];
     memcpy(meta_w, n.meta, sizeof meta_w);
     return meta_hit_bits(meta_w, r.octinv, slots);

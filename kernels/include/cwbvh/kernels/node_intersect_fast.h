@@ -173,7 +173,8 @@ CWBVH_HD CWBVH_INLINE void enable_fast_node_test(NodeRay& r, const NodeScale& sc
         moved[a] = fma_rn(tmin, dir[a], r.org[a]);
         r.norcp[a] = -mul_rn(moved[a], r.rcp[a]);
     }
-    r.fast = (r.zero_axes == 0 && fast_node_test_applies(sc, moved, r.rcp, tmin)) ? 1u : 0u;
+    const bool fast = r.zero_axis_bits() == 0 && fast_node_test_applies(sc, moved, r.rcp, tmin);
+    r.zero_axes = r.zero_axis_bits() | (fast ? NodeRay::kFastBit : 0u);
 }
 
 /// A CwbvhNode as the twenty 32-bit words a GPU loads (five 16-byte loads): the fast
@@ -295,10 +296,10 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const Nod
 }
 
 /// The node test a traversal runs on `r`: intersect_node_fast where the ray's set-up
-/// enabled it (r.fast) on sm_90 and later, the reference arithmetic otherwise. Before
+/// enabled it (r.uses_fast_test()) on sm_90 and later, the reference arithmetic otherwise. Before
 /// sm_90 the three-input integer min/max of the fast test are emulated (several
 /// instructions each) and the kernels would spill (sm_75): reference arithmetic. On the
-/// host r.fast selects too (the warp model and the tests run what the kernel runs).
+/// host the flag selects too (the warp model and the tests run what the kernel runs).
 /// one: NodeScale::one_bits (see plane_unit). The kernels pass NodeWords (see there),
 /// the host CPU traversal the node in place.
 CWBVH_HD CWBVH_INLINE uint32_t intersect_node_dispatch(const NodeWords& n, const NodeRay& r, float tmin, float tmax,
@@ -307,7 +308,7 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_dispatch(const NodeWords& n, const
     (void)one;
     return intersect_node(node_from_words(n), r, tmin, tmax);
 #else
-    if (r.fast) return intersect_node_fast(n, r, tmax, one);
+    if (r.uses_fast_test()) return intersect_node_fast(n, r, tmax, one);
     return intersect_node(node_from_words(n), r, tmin, tmax);
 #endif
 }
@@ -317,7 +318,7 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_dispatch(const CwbvhNode& n, const
     (void)one;
     return intersect_node(n, r, tmin, tmax);
 #else
-    return r.fast ? intersect_node_fast(n, r, tmax, one) : intersect_node(n, r, tmin, tmax);
+    return r.uses_fast_test() ? intersect_node_fast(n, r, tmax, one) : intersect_node(n, r, tmin, tmax);
 #endif
 }
 

@@ -8,6 +8,7 @@
 // (det == 0) is a miss in both.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 
 #include "cwbvh/format/format.h"
@@ -27,29 +28,25 @@ struct TriangleHit {
 // Watertight test (Woop et al. 2013)
 // ---------------------------------------------------------------------------
 
-/// Per-ray shear constants (paper, section 3): kz = dominant axis of dir, kx, ky
-/// the other two, swapped when dir[kz] < 0 to keep the winding; the shear maps dir
-/// to (0, 0, dir[kz]).
+/// Per-ray shear constants (paper, section 3): kz = dominant axis of dir, kx, ky the
+/// other two, swapped when dir[kz] < 0 to keep the winding; the shear maps dir to
+/// (0, 0, dir[kz]): sheared x = A[kx] - sx A[kz], y = A[ky] - sy A[kz] for A = v - o,
+/// sx = dir[kx] / dir[kz], sy = dir[ky] / dir[kz].
+///
+/// Written as two rows, x = A.mx and y = A.my with mx = e_kx - sx e_kz and
+/// my = e_ky - sy e_kz (each an exact 1, an exact 0 and one quotient), so a triangle
+/// test reads its vertices in their stored axis order: picking v[kx], v[ky], v[kz] from
+/// registers took two selects per coordinate, 18 per triangle, plus decoding kx, ky, kz
+/// (issue 18). Every quantity of the test is a function of the vertex and the ray alone
+/// (the rounding of A.mx depends on which axis holds the 0, a per-ray fact), which is
+/// all the watertightness argument below needs. org is the ray's origin as given (the
+/// lane's NodeRay holds the same values: no extra registers on the GPU).
 struct WatertightRay {
-    float ox, oy, oz;  ///< org[kx], org[ky], org[kz]: permuted once per ray
-    float dx, dy, dz;  ///< dir[kx], dir[ky], dir[kz] (plane_t)
-    uint32_t k;        ///< kx | ky << 8 | kz << 16: one register (issue 10's budget)
-    CWBVH_HD int kx() const { return int(k & 0xFFu); }
-    CWBVH_HD int ky() const { return int((k >> 8) & 0xFFu); }
-    CWBVH_HD int kz() const { return int(k >> 16); }
-    float sx, sy;
+    float org[3];  ///< the ray's origin
+    float dir[3];  ///< the ray's direction (plane_t and the range stage; unpermuted)
+    float mx[3];   ///< sheared x = (v - org) . mx
+    float my[3];   ///< sheared y = (v - org) . my
 };
-
-/// v[k] for k in 0..2. On the device a chain of selects: an indexed read of a
-/// triangle held in registers would force it into local memory. On the host the
-/// triangle is in memory anyway and an indexed load is one instruction.
-CWBVH_HD CWBVH_INLINE float pick3(const float* v, int k) {
-#if defined(__CUDA_ARCH__)
-    return k == 0 ? v[0] : (k == 1 ? v[1] : v[2]);
-#else
-    return v[k];
-#endif
-}
 
 CWBVH_HD CWBVH_INLINE WatertightRay make_watertight_ray(const Ray& r) {
     WatertightRay w;
@@ -57,28 +54,37 @@ CWBVH_HD CWBVH_INLINE WatertightRay make_watertight_ray(const Ray& r) {
     const int kz = (ax > ay) ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2);
     int kx = kz == 2 ? 0 : kz + 1;
     int ky = kx == 2 ? 0 : kx + 1;
-    const float dz = pick3(r.dir, kz);
+    // Constant indices only below (selects): an array written at a run-time index would
+    // live in local memory on the GPU.
+    const float dz = kz == 0 ? r.dir[0] : (kz == 1 ? r.dir[1] : r.dir[2]);
     if (dz < 0.0f) {
         const int tmp = kx;
         kx = ky;
         ky = tmp;
     }
-    w.k = uint32_t(kx) | uint32_t(ky) << 8 | uint32_t(kz) << 16;
+    const float dx = kx == 0 ? r.dir[0] : (kx == 1 ? r.dir[1] : r.dir[2]);
+    const float dy = ky == 0 ? r.dir[0] : (ky == 1 ? r.dir[1] : r.dir[2]);
     // dir[kz] != 0 for a traceable ray. These roundings are shared by every triangle
     // the ray meets, so they cannot open a crack between neighbours.
-    w.ox = pick3(r.org, w.kx());
-    w.oy = pick3(r.org, w.ky());
-    w.oz = pick3(r.org, w.kz());
-    w.dx = pick3(r.dir, w.kx());
-    w.dy = pick3(r.dir, w.ky());
-    w.dz = dz;
-    w.sx = w.dx / dz;
-    w.sy = w.dy / dz;
+    const float sx = -(dx / dz), sy = -(dy / dz);
+    CWBVH_UNROLL
+    for (int a = 0; a < 3; ++a) {
+        w.org[a] = r.org[a];
+        w.dir[a] = r.dir[a];
+        w.mx[a] = a == kx ? 1.0f : (a == kz ? sx : 0.0f);
+        w.my[a] = a == ky ? 1.0f : (a == kz ? sy : 0.0f);
+    }
     return w;
 }
 
+/// (v - org) . m as the tests compute it: the product of axis 2, then two fmas. One of
+/// the three terms is an exact 0 (v - org finite) and one an exact copy of v - org.
+CWBVH_HD CWBVH_INLINE float shear_row(const float a[3], const float m[3]) {
+    return fma_rn(a[0], m[0], fma_rn(a[1], m[1], mul_rn(a[2], m[2])));
+}
+
 /// Hit distance: t = n.(v0 - o) / n.d, n = (v1 - v0) x (v2 - v0), in double from the
-/// float inputs (axes permuted as in w: num and den flip sign alike). Not the
+/// float inputs (axes in their stored order). Not the
 /// paper's T / det: its float sheared z and edge functions (cancelling near an edge)
 /// err by ~u |v - o|, so its t was off by ~u |v - o| / cos, far more than ulps of t
 /// (0.3-0.7 % for a sponza bounce ray 0.027 from its hit, 7 from the far vertices);
@@ -91,17 +97,18 @@ CWBVH_HD CWBVH_INLINE WatertightRay make_watertight_ray(const Ray& r) {
 /// so host and device agree bitwise. False when the ray is parallel to the plane.
 CWBVH_HD CWBVH_INLINE bool plane_t(const WatertightRay& w, const float* v0, const float* v1, const float* v2,
                                    double& t) {
-    const double px = pick3(v0, w.kx()), py = pick3(v0, w.ky()), pz = pick3(v0, w.kz());
-    const double e1x = sub_rn(double(pick3(v1, w.kx())), px), e1y = sub_rn(double(pick3(v1, w.ky())), py);
-    const double e1z = sub_rn(double(pick3(v1, w.kz())), pz);
-    const double e2x = sub_rn(double(pick3(v2, w.kx())), px), e2y = sub_rn(double(pick3(v2, w.ky())), py);
-    const double e2z = sub_rn(double(pick3(v2, w.kz())), pz);
+    const double px = v0[0], py = v0[1], pz = v0[2];
+    const double e1x = sub_rn(double(v1[0]), px), e1y = sub_rn(double(v1[1]), py);
+    const double e1z = sub_rn(double(v1[2]), pz);
+    const double e2x = sub_rn(double(v2[0]), px), e2y = sub_rn(double(v2[1]), py);
+    const double e2z = sub_rn(double(v2[2]), pz);
     const double nx = sub_rn(mul_rn(e1y, e2z), mul_rn(e1z, e2y));
     const double ny = sub_rn(mul_rn(e1z, e2x), mul_rn(e1x, e2z));
     const double nz = sub_rn(mul_rn(e1x, e2y), mul_rn(e1y, e2x));
-    const double num = add_rn(add_rn(mul_rn(nx, sub_rn(px, double(w.ox))), mul_rn(ny, sub_rn(py, double(w.oy)))),
-                              mul_rn(nz, sub_rn(pz, double(w.oz))));
-    const double den = add_rn(add_rn(mul_rn(nx, double(w.dx)), mul_rn(ny, double(w.dy))), mul_rn(nz, double(w.dz)));
+    const double num = add_rn(add_rn(mul_rn(nx, sub_rn(px, double(w.org[0]))), mul_rn(ny, sub_rn(py, double(w.org[1])))),
+                              mul_rn(nz, sub_rn(pz, double(w.org[2]))));
+    const double den =
+        add_rn(add_rn(mul_rn(nx, double(w.dir[0])), mul_rn(ny, double(w.dir[1]))), mul_rn(nz, double(w.dir[2])));
     if (den == 0.0 || den != den) return false;
     t = num / den;
     return t == t;
@@ -126,26 +133,28 @@ struct WatertightEdges {
 };
 CWBVH_HD CWBVH_INLINE bool watertight_edges(const WatertightRay& w, const float* v0, const float* v1,
                                             const float* v2, WatertightEdges& e) {
-    // Vertices relative to the origin, then sheared.
-    const float a_kx = sub_rn(pick3(v0, w.kx()), w.ox), a_ky = sub_rn(pick3(v0, w.ky()), w.oy);
-    const float a_kz = sub_rn(pick3(v0, w.kz()), w.oz);
-    const float b_kx = sub_rn(pick3(v1, w.kx()), w.ox), b_ky = sub_rn(pick3(v1, w.ky()), w.oy);
-    const float b_kz = sub_rn(pick3(v1, w.kz()), w.oz);
-    const float c_kx = sub_rn(pick3(v2, w.kx()), w.ox), c_ky = sub_rn(pick3(v2, w.ky()), w.oy);
-    const float c_kz = sub_rn(pick3(v2, w.kz()), w.oz);
-    e.ax = sub_rn(a_kx, mul_rn(w.sx, a_kz));
-    e.ay = sub_rn(a_ky, mul_rn(w.sy, a_kz));
-    e.bx = sub_rn(b_kx, mul_rn(w.sx, b_kz));
-    e.by = sub_rn(b_ky, mul_rn(w.sy, b_kz));
-    e.cx = sub_rn(c_kx, mul_rn(w.sx, c_kz));
-    e.cy = sub_rn(c_ky, mul_rn(w.sy, c_kz));
+    // Vertices relative to the origin, then sheared (WatertightRay: two rows).
+    const float a[3] = {sub_rn(v0[0], w.org[0]), sub_rn(v0[1], w.org[1]), sub_rn(v0[2], w.org[2])};
+    const float b[3] = {sub_rn(v1[0], w.org[0]), sub_rn(v1[1], w.org[1]), sub_rn(v1[2], w.org[2])};
+    const float c[3] = {sub_rn(v2[0], w.org[0]), sub_rn(v2[1], w.org[1]), sub_rn(v2[2], w.org[2])};
+    e.ax = shear_row(a, w.mx);
+    e.ay = shear_row(a, w.my);
+    e.bx = shear_row(b, w.mx);
+    e.by = shear_row(b, w.my);
+    e.cx = shear_row(c, w.mx);
+    e.cy = shear_row(c, w.my);
 
     // Scaled barycentrics (edge functions).
     e.eu = sub_rn(mul_rn(e.cx, e.by), mul_rn(e.cy, e.bx));
     e.ev = sub_rn(mul_rn(e.ax, e.cy), mul_rn(e.ay, e.cx));
     e.ew = sub_rn(mul_rn(e.bx, e.ay), mul_rn(e.by, e.ax));
-    // Exact-sign early out (NaN from inf-inf fails both comparisons and goes on).
-    return !((e.eu < 0.0f || e.ev < 0.0f || e.ew < 0.0f) && (e.eu > 0.0f || e.ev > 0.0f || e.ew > 0.0f));
+    // Exact-sign early out: mixed signs iff the smallest is < 0 and the largest > 0.
+    // fminf/fmaxf (host and device alike, IEEE minNum/maxNum) return the other operand
+    // for a NaN, so a NaN edge function (inf - inf) counts as neither sign; all three
+    // NaN fail both comparisons: the test goes on. Four min/max and two compares
+    // instead of a branchy or-chain.
+    const float lo = fminf(fminf(e.eu, e.ev), e.ew), hi = fmaxf(fmaxf(e.eu, e.ev), e.ew);
+    return !(lo < 0.0f && hi > 0.0f);
 }
 
 /// The watertight test's second stage, in float: true when the hit distance T of the
@@ -155,7 +164,7 @@ CWBVH_HD CWBVH_INLINE bool watertight_edges(const WatertightRay& w, const float*
 /// found so far, and this stage rejects them in about 50 float instructions instead of
 /// the double path's 200 (issue 18).
 ///
-/// Exact quantities (axes permuted as in w; o, d the ray): E1 = v1 - v0, E2 = v2 - v0,
+/// Exact quantities (axes in their stored order; o, d the ray): E1 = v1 - v0, E2 = v2 - v0,
 /// N = E1 x E2, A = v0 - o, NUM = N.A, DEN = N.d, T = NUM / DEN (plane_t computes the
 /// same T). The float values below carry these bounds (u = 2^-24, every operation
 /// rounded to nearest, fma_rn rounding once; first order, the second-order terms are
@@ -164,11 +173,10 @@ CWBVH_HD CWBVH_INLINE bool watertight_edges(const WatertightRay& w, const float*
 ///   n_i = fma(e1_j, e2_k, -RN(e1_k e2_j)): |n_i - N_i| <= 4u P_i + 2^-149,
 ///     P_i = |e1_j e2_k| + |e1_k e2_j| (computed as fma(|e1_j|, |e2_k|, |RN(e1_k e2_j)|));
 ///   num = fma-dot(n, a): |num - NUM| <= (3u + 4u + u) sum P_i |a_i| + 2^-149 (sum |a_i| + 2);
-///   den = fma-dot(n, d) (d exact): |den - DEN| <= 7u sum P_i |d_i| + 2^-149 (sum |d_i| + 2),
-///     sum |d_i| <= 3 |d_kz| (kz is the dominant axis);
+///   den = fma-dot(n, d) (d exact): |den - DEN| <= 7u sum P_i |d_i| + 2^-149 (sum |d_i| + 2);
 /// where the 2^-149 terms cover products and sums that land in the subnormal range
 /// (absolute error <= 2^-150 each). Slack: en = 2^-20 M_num + 2^-146 (sum |a_i| + 1)
-/// and ed = 2^-20 M_den + 2^-144 |d_kz| + 2^-146, M = the computed sums of P_i |.|:
+/// and ed = 2^-20 M_den + 2^-146 (sum |d_i| + 1), M = the computed sums of P_i |.|:
 /// 16u instead of 8u leaves 8u of the sums for the roundings of the comparisons below
 /// (at most 4u of each side; |den| <= M_den (1 + 8u)), and the absolute terms are
 /// 4-8 times what the subnormal range needs.
@@ -183,25 +191,25 @@ CWBVH_HD CWBVH_INLINE bool watertight_edges(const WatertightRay& w, const float*
 /// far inside the 16u margin.
 CWBVH_HD CWBVH_INLINE bool watertight_range_miss(const WatertightRay& w, const float* v0, const float* v1,
                                                  const float* v2, float tmin, float tmax) {
-    const float px0 = pick3(v0, w.kx()), py0 = pick3(v0, w.ky()), pz0 = pick3(v0, w.kz());
-    const float e1x = sub_rn(pick3(v1, w.kx()), px0), e1y = sub_rn(pick3(v1, w.ky()), py0);
-    const float e1z = sub_rn(pick3(v1, w.kz()), pz0);
-    const float e2x = sub_rn(pick3(v2, w.kx()), px0), e2y = sub_rn(pick3(v2, w.ky()), py0);
-    const float e2z = sub_rn(pick3(v2, w.kz()), pz0);
-    const float ax = sub_rn(px0, w.ox), ay = sub_rn(py0, w.oy), az = sub_rn(pz0, w.oz);
+    const float px0 = v0[0], py0 = v0[1], pz0 = v0[2];
+    const float e1x = sub_rn(v1[0], px0), e1y = sub_rn(v1[1], py0), e1z = sub_rn(v1[2], pz0);
+    const float e2x = sub_rn(v2[0], px0), e2y = sub_rn(v2[1], py0), e2z = sub_rn(v2[2], pz0);
+    const float ax = sub_rn(px0, w.org[0]), ay = sub_rn(py0, w.org[1]), az = sub_rn(pz0, w.org[2]);
     const float mx = mul_rn(e1z, e2y), my = mul_rn(e1x, e2z), mz = mul_rn(e1y, e2x);
     const float nx = fma_rn(e1y, e2z, -mx), ny = fma_rn(e1z, e2x, -my), nz = fma_rn(e1x, e2y, -mz);
     const float Px = fma_rn(abs_fm(e1y), abs_fm(e2z), abs_fm(mx));
     const float Py = fma_rn(abs_fm(e1z), abs_fm(e2x), abs_fm(my));
     const float Pz = fma_rn(abs_fm(e1x), abs_fm(e2y), abs_fm(mz));
     if (!(add_rn(add_rn(Px, Py), Pz) < 8.5070591730234616e+37f)) return false;  // 2^126; NaN
+    const float dx = w.dir[0], dy = w.dir[1], dz = w.dir[2];
     const float num = fma_rn(nx, ax, fma_rn(ny, ay, mul_rn(nz, az)));
-    const float den = fma_rn(nx, w.dx, fma_rn(ny, w.dy, mul_rn(nz, w.dz)));
+    const float den = fma_rn(nx, dx, fma_rn(ny, dy, mul_rn(nz, dz)));
     const float Mn = fma_rn(Px, abs_fm(ax), fma_rn(Py, abs_fm(ay), mul_rn(Pz, abs_fm(az))));
-    const float Md = fma_rn(Px, abs_fm(w.dx), fma_rn(Py, abs_fm(w.dy), mul_rn(Pz, abs_fm(w.dz))));
+    const float Md = fma_rn(Px, abs_fm(dx), fma_rn(Py, abs_fm(dy), mul_rn(Pz, abs_fm(dz))));
     const float sa = add_rn(add_rn(abs_fm(ax), abs_fm(ay)), abs_fm(az));
+    const float sd = add_rn(add_rn(abs_fm(dx), abs_fm(dy)), abs_fm(dz));
     const float en = fma_rn(Mn, 9.5367431640625e-07f, fma_rn(sa, 1.1210387714598537e-44f, 1.1210387714598537e-44f));
-    const float ed = fma_rn(Md, 9.5367431640625e-07f, fma_rn(abs_fm(w.dz), 4.4841550858394146e-44f, 1.1210387714598537e-44f));
+    const float ed = fma_rn(Md, 9.5367431640625e-07f, fma_rn(sd, 1.4947183447801235e-44f, 1.1210387714598537e-44f));
     const float dp = abs_fm(den);
     const float np = bits_to_float(float_to_bits(num) ^ (float_to_bits(den) & 0x80000000u));
     if (!(dp > ed)) return false;  // the sign of DEN is not certain (or NaN)
@@ -294,6 +302,14 @@ struct TriangleIntersector<TriangleTest::kWatertight> {
     CWBVH_HD bool operator()(const TriangleRecord& tri, float tmin, float tmax, TriangleHit& out) const {
         return intersect_triangle_watertight(w, tri.v0, tri.v1, tri.v2, tmin, tmax, out);
     }
+    /// The same test with the origin read from `org`, an array holding the same values
+    /// (the GPU lane passes its NodeRay's: the copy in w is then never read and takes no
+    /// registers).
+    CWBVH_HD TriangleIntersector with_org(const float org[3]) const {
+        TriangleIntersector t = *this;
+        for (int a = 0; a < 3; ++a) t.w.org[a] = org[a];
+        return t;
+    }
 };
 
 template <>
@@ -302,6 +318,11 @@ struct TriangleIntersector<TriangleTest::kFast> {
     CWBVH_HD explicit TriangleIntersector(const Ray& ray) : r(ray) {}
     CWBVH_HD bool operator()(const TriangleRecord& tri, float tmin, float tmax, TriangleHit& out) const {
         return intersect_triangle_fast(r, tri.v0, tri.v1, tri.v2, tmin, tmax, out);
+    }
+    CWBVH_HD TriangleIntersector with_org(const float org[3]) const {
+        TriangleIntersector t = *this;
+        for (int a = 0; a < 3; ++a) t.r.org[a] = org[a];
+        return t;
     }
 };
 
