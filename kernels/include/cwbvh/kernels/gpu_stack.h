@@ -47,19 +47,35 @@ struct SharedSpillStack {
     /// Entry k of this lane is shared[k * kStride]: the lanes of a warp (32) side by side,
     /// with shared pointing at [warp][0][lane]. A constant, not a member: one register less.
     static constexpr int kStride = 32;
+#if defined(__CUDA_ARCH__)
+    /// On the device the shared entry 0 of this lane as a 32-bit shared-window address:
+    /// a generic pointer cost two registers, and under the kernel's register cap nvcc
+    /// rebuilt it (S2R of the CTA's cluster slot, then four integer ops) at every
+    /// triangle round instead.
+    uint32_t shared_addr;
+#else
     PackedEntry* shared;
+#endif
     PackedEntry* local;  ///< kLocalEntries entries of spill area (local memory on the GPU)
     int size;
 
     CWBVH_HD SharedSpillStack(PackedEntry* shared_base, PackedEntry* local_area)
+#if defined(__CUDA_ARCH__)
+        : shared_addr(uint32_t(__cvta_generic_to_shared(shared_base))), local(local_area), size(0) {}
+#else
         : shared(shared_base), local(local_area), size(0) {}
+#endif
 
     CWBVH_HD bool push(StackEntry e) {
-        const PackedEntry p{e.base, e.hits};
         if (size < kSharedEntries) {
-            shared[size * kStride] = p;
+#if defined(__CUDA_ARCH__)
+            asm volatile("st.shared.v2.u32 [%0], {%1, %2};" ::"r"(shared_addr + uint32_t(size * kStride * 8)),
+                         "r"(e.base), "r"(e.hits));
+#else
+            shared[size * kStride] = PackedEntry{e.base, e.hits};
+#endif
         } else if (size < kSharedEntries + kLocalEntries) {
-            local[size - kSharedEntries] = p;
+            local[size - kSharedEntries] = PackedEntry{e.base, e.hits};
         } else {
             return false;
         }
@@ -69,7 +85,19 @@ struct SharedSpillStack {
     CWBVH_HD bool empty() const { return size == 0; }
     CWBVH_HD StackEntry pop() {
         --size;
-        const PackedEntry p = size < kSharedEntries ? shared[size * kStride] : local[size - kSharedEntries];
+        if (size < kSharedEntries) {
+#if defined(__CUDA_ARCH__)
+            uint32_t base, hits;
+            asm volatile("ld.shared.v2.u32 {%0, %1}, [%2];"
+                         : "=r"(base), "=r"(hits)
+                         : "r"(shared_addr + uint32_t(size * kStride * 8)));
+            return StackEntry{base, hits};
+#else
+            const PackedEntry p = shared[size * kStride];
+            return StackEntry{p.base, p.hits};
+#endif
+        }
+        const PackedEntry p = local[size - kSharedEntries];
         return StackEntry{p.base, p.hits};
     }
     CWBVH_HD void clear() { size = 0; }
