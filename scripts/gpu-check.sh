@@ -97,6 +97,12 @@ if [[ -n "$cc" && "$dry_run" != "1" ]]; then
   cus=("$root"/kernels/src/kernels_*.cu)
   [[ -e "${cus[0]}" ]] || cus=("$root/kernels/src/trace.cu")
   "$root/scripts/ptxas-report.sh" "sm_$cc" "$root/bench/results/ptxas-sm_${cc}-device.txt" || true
+  # SASS audit of the kernels as built (cuobjdump is in the GPU machine's toolkit): per kernel
+  # instructions, local memory accesses, byte loads, byte rebuilds, cluster-slot reads.
+  if [[ -f "$build/lib/libcwbvh_cuda.a" ]]; then
+    "$root/bench/gpu/sass_audit.sh" "$build/lib/libcwbvh_cuda.a" > "$root/bench/results/sass-sm_${cc}-device.txt" 2>&1 &&
+      sed -n '1,9p' "$root/bench/results/sass-sm_${cc}-device.txt" || echo "gpu-check: SASS audit skipped (no cuobjdump?)"
+  fi
   nvidia-smi --query-gpu=name,driver_version,clocks.max.sm,clocks.max.mem --format=csv || true
 fi
 
