@@ -10,7 +10,7 @@
 // memory). Persistent warps fetch 32 rays per atomicAdd; a warp fetches again when
 // all its lanes are done (no dynamic fetch, no postponing: the single-level kernel's
 // warp policies are the next step once a GPU measures it). The node test is the
-// single-level kernel's: intersect_node_fast on sm_90 for the world ray and every
+// single-level kernel's: intersect_node_fast on sm_80 and later for the world ray and every
 // object-space ray its set-up admits (scene constants over NODE and TLAS), the
 // reference arithmetic otherwise.
 #include <cuda_runtime.h>

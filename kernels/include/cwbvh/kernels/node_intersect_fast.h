@@ -296,15 +296,17 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const Nod
 }
 
 /// The node test a traversal runs on `r`: intersect_node_fast where the ray's set-up
-/// enabled it (r.uses_fast_test()) on sm_90 and later, the reference arithmetic otherwise. Before
-/// sm_90 the three-input integer min/max of the fast test are emulated (several
-/// instructions each) and the kernels would spill (sm_75): reference arithmetic. On the
-/// host the flag selects too (the warp model and the tests run what the kernel runs).
+/// enabled it (r.uses_fast_test()) on sm_80 and later, the reference arithmetic otherwise.
+/// sm_90 has the three-input integer min/max in one instruction (DPX); sm_80-89 (A100,
+/// Ampere, Ada) emulate them with two-input ones and still gain: node step 295 against 377
+/// by bench/gpu/step_sizes.sh sm_80, 80 registers and no spills. On sm_75 the kernels would
+/// spill: reference arithmetic. On the host the flag selects too (the warp model and the
+/// tests run what the kernel runs).
 /// one: NodeScale::one_bits (see plane_unit). The kernels pass NodeWords (see there),
 /// the host CPU traversal the node in place.
 CWBVH_HD CWBVH_INLINE uint32_t intersect_node_dispatch(const NodeWords& n, const NodeRay& r, float tmin, float tmax,
                                                        uint32_t one) {
-#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 900
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 800
     (void)one;
     return intersect_node(node_from_words(n), r, tmin, tmax);
 #else
@@ -314,7 +316,7 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_dispatch(const NodeWords& n, const
 }
 CWBVH_HD CWBVH_INLINE uint32_t intersect_node_dispatch(const CwbvhNode& n, const NodeRay& r, float tmin, float tmax,
                                                        uint32_t one) {
-#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 900
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 800
     (void)one;
     return intersect_node(n, r, tmin, tmax);
 #else
