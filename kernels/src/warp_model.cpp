@@ -83,6 +83,7 @@ private:
         uint32_t ray_id = 0;
         CwbvhLane<kTest> l{Ray{{0, 0, 0}, 0, {1, 1, 1}, 0}};
         ModelStack stack;
+        float u = 0.0f, v = 0.0f;  ///< of the closest hit so far (the kernel's shared s_uv)
     };
 
     int active_count() const {
@@ -123,7 +124,7 @@ private:
 
     void finish(Lane& lane, TraceStatus status) {
         Hit h = make_miss();
-        if (lane.l.hit_tri != kNoTriangle) h = lane_hit(lane.l, tris_[lane.l.hit_tri]);  // as traverse.h
+        if (lane.l.hit_tri != kNoTriangle) h = Hit{lane.l.tmax, lane.u, lane.v, tris_[lane.l.hit_tri].prim};  // as the kernel
         hits_[lane.ray_id] = h;
         s_.hits += h.prim != kMissPrim;
         s_.stack_overflows += status == TraceStatus::kStackOverflow;
@@ -184,7 +185,12 @@ private:
                     continue;
                 }
                 ++testing;
-                if (test_triangle(lane.l, tris_[ti], ti) && kMode == HitMode::kAny) finish(lane, TraceStatus::kOk);
+                TriangleHit th;
+                if (test_triangle(lane.l, tris_[ti], ti, th)) {
+                    lane.u = th.u;
+                    lane.v = th.v;
+                    if (kMode == HitMode::kAny) finish(lane, TraceStatus::kOk);
+                }
             }
             if (testing) {
                 ++s_.warp_tri_steps;

@@ -10,9 +10,10 @@
 // A lane's state is kept small on purpose (issue 10: 128 registers capped the
 // kernel at 25 % occupancy):
 //   - the closest hit so far is the TRIS index of its triangle plus tmax (which IS
-//     the hit distance); u, v and the primitive id are recomputed once, when the ray
-//     ends, by running the same triangle test on that triangle again (the test is a
-//     pure function of ray and triangle, so it returns the same t, u, v bit for bit);
+//     the hit distance); its u, v go to shared memory at each hit (test_triangle's
+//     TriangleHit; the kernel's s_uv, the warp model's Lane), and the primitive id is
+//     read from TRIS when the ray ends (until 2026-11-26 the whole triangle test ran a
+//     second time there instead: ~200 instructions per hitting ray);
 //   - no Ray copy survives set-up: NodeRay and the triangle test's per-ray
 //     constants are all the traversal reads;
 //   - node and triangle records are loaded by the caller (the kernel through the
@@ -121,15 +122,20 @@ CWBVH_HD CWBVH_INLINE uint32_t next_triangle(CwbvhLane<kTest>& l, uint32_t tri_c
 }
 
 /// Triangle step, second half: tests the loaded triangle `ti`; a hit shrinks tmax
-/// and becomes the closest hit. Returns true on a hit.
+/// and becomes the closest hit, and th holds its t, u, v. Returns true on a hit.
 template <TriangleTest kTest>
-CWBVH_HD CWBVH_INLINE bool test_triangle(CwbvhLane<kTest>& l, const TriangleRecord& tri, uint32_t ti) {
-    TriangleHit th;
+CWBVH_HD CWBVH_INLINE bool test_triangle(CwbvhLane<kTest>& l, const TriangleRecord& tri, uint32_t ti,
+                                         TriangleHit& th) {
     // with_org: the origin from nray (the same values; one copy in registers).
     if (!l.tri_test.with_org(l.nray.org)(tri, l.tmin, l.tmax, th)) return false;
     l.tmax = th.t;
     l.hit_tri = ti;
     return true;
+}
+template <TriangleTest kTest>
+CWBVH_HD CWBVH_INLINE bool test_triangle(CwbvhLane<kTest>& l, const TriangleRecord& tri, uint32_t ti) {
+    TriangleHit th;
+    return test_triangle(l, tri, ti, th);
 }
 
 /// Postpones the triangle group (paper 4.2): pushes it and clears it. False when
@@ -151,15 +157,5 @@ CWBVH_HD CWBVH_INLINE bool pop_if_idle(CwbvhLane<kTest>& l, Stack& stack) {
     return false;
 }
 
-/// The Hit of a finished ray: re-runs the triangle test of the closest hit (same
-/// inputs, same t, u, v) and adds its primitive id; make_miss() without a hit.
-/// The interval end is +inf, not tmax: the test compares its unrounded t with
-/// tmax, and tmax holds that t rounded to float, which may lie below it.
-template <TriangleTest kTest>
-CWBVH_HD CWBVH_INLINE Hit lane_hit(const CwbvhLane<kTest>& l, const TriangleRecord& tri) {
-    TriangleHit th;
-    if (l.hit_tri == kNoTriangle || !l.tri_test.with_org(l.nray.org)(tri, l.tmin, kInfinity, th)) return make_miss();
-    return Hit{th.t, th.u, th.v, tri.prim};
-}
 
 }  // namespace cwbvh

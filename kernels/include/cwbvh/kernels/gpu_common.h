@@ -80,6 +80,9 @@ __device__ __forceinline__ Ray load_ray(const Ray* p) {
     return Ray{{a.x, a.y, a.z}, a.w, {b.x, b.y, b.z}, b.w};
 }
 
+/// The stored triangle id of a record alone (one 4-byte load).
+__device__ __forceinline__ uint32_t load_triangle_prim(const TriangleRecord* p) { return __ldg(&p->prim); }
+
 __device__ __forceinline__ void store_hit(Hit* p, const Hit& h) {
     *reinterpret_cast<float4*>(p) = make_float4(h.t, h.u, h.v, __uint_as_float(h.prim));
 }
