@@ -190,9 +190,10 @@ struct NodeWords {
 };
 static_assert(sizeof(NodeWords) == sizeof(CwbvhNode), "NodeWords is CwbvhNode's 80 bytes");
 
-/// Node `p` as words: on the device five 16-byte loads through the read-only cache
-/// (NODE and TLAS are 16-byte aligned: 80-byte records from an aligned base); on the
-/// host a copy.
+/// Node `p` as words: on the device five 16-byte loads through the read-only cache,
+/// so `p` must be 16-byte aligned there (DeviceScene's NODE and TLAS are cudaMalloc'd
+/// arrays of 80-byte records; a caller's own device copy of a section needs the same);
+/// on the host a copy.
 CWBVH_HD CWBVH_INLINE NodeWords load_node_words(const CwbvhNode* p) {
     NodeWords n;
 #if defined(__CUDA_ARCH__)
