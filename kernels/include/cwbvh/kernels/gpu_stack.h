@@ -59,6 +59,9 @@ struct SharedSpillStack {
     PackedEntry* local;  ///< kLocalEntries entries of spill area (local memory on the GPU)
     int size;
 
+    /// shared_base: this lane's entry 0; on the device it must point into shared memory
+    /// (a __shared__ array: the kernels' [warp][entry][lane] blocks), since pushes and pops
+    /// address it in the shared window.
     CWBVH_HD SharedSpillStack(PackedEntry* shared_base, PackedEntry* local_area)
 #if defined(__CUDA_ARCH__)
         : shared_addr(uint32_t(__cvta_generic_to_shared(shared_base))), local(local_area), size(0) {}
