@@ -51,6 +51,7 @@ struct Tally {
     uint64_t wrong = 0;     ///< ... while the exact T lies inside [tmin, tmax]
     uint64_t far_decided = 0;  ///< rejected with tmax <= T (1 - 1024u): the stage's reach
     uint64_t far_cases = 0;
+    uint64_t conflicts = 0;  ///< the stage rejected, the whole test (double path) accepted
 };
 
 /// Every range around T the stage could misjudge, both ends.
@@ -77,6 +78,11 @@ void check_ranges(const Ray& ray, const float* v0, const float* v1, const float*
                     const bool miss = watertight_range_miss(w, v0, v1, v2, tmin, tmax);
                     const bool inside = q128(tmin) <= ex.t && ex.t <= q128(tmax);
                     if (miss) ++tally.rejected;
+                    // The GPU runs the stage, the host does not (its fmas are libm calls
+                    // there): both must decide alike, so whatever the stage rejects the
+                    // host's whole test (stage skipped, double distance) rejects too.
+                    TriangleHit th;
+                    if (miss && intersect_triangle_watertight(w, v0, v1, v2, tmin, tmax, th)) ++tally.conflicts;
                     if (miss && inside) {
                         if (++tally.wrong <= 5)
                             std::printf("wrong reject: T %.17g tmin %.9g tmax %.9g\n", T, double(tmin), double(tmax));
@@ -127,6 +133,7 @@ TEST(TriangleRange, RejectsOnlyWhatLiesOutsideTheRange) {
                 (unsigned long long)tally.cases, (unsigned long long)tally.rejected, (unsigned long long)tally.wrong,
                 (unsigned long long)tally.far_decided, (unsigned long long)tally.far_cases);
     EXPECT_EQ(tally.wrong, 0u);
+    EXPECT_EQ(tally.conflicts, 0u);
     // The stage must be worth its instructions: it decides most ranges that end well
     // before T (a hit behind the closest one), not only the obvious ones.
     EXPECT_GT(tally.far_decided, tally.far_cases * 85 / 100);
@@ -157,6 +164,7 @@ TEST(TriangleRange, SliversGrazingRaysAndHugeOrTinyCoordinates) {
     std::printf("cases %llu rejected %llu wrong %llu\n", (unsigned long long)tally.cases,
                 (unsigned long long)tally.rejected, (unsigned long long)tally.wrong);
     EXPECT_EQ(tally.wrong, 0u);
+    EXPECT_EQ(tally.conflicts, 0u);
     EXPECT_GT(tally.rejected, 0u);
 }
 

@@ -77,10 +77,16 @@ CWBVH_HD CWBVH_INLINE WatertightRay make_watertight_ray(const Ray& r) {
     return w;
 }
 
-/// (v - org) . m as the tests compute it: the product of axis 2, then two fmas. One of
-/// the three terms is an exact 0 (v - org finite) and one an exact copy of v - org.
+/// (v - org) . m as the tests compute it: three products and two sums, each rounded,
+/// never fused. Of the three products one is exact (times 1) and one an exact 0 (times
+/// 0, for v - org finite), so the result is RN(A[kx] - RN(sx A[kz])), the sheared
+/// coordinate of the paper (and of this test before the rows), whichever axes kx, kz
+/// are; only the sign of an exact zero can depend on the order. Not fmas: on the host
+/// an fma without -mfma is a libm call, and eighteen of them per triangle made the CPU
+/// traversal 2-3x slower (bench/results/cpu/2026-11-26-shear-rows); the GPU pays 12
+/// instructions per triangle for the plain form.
 CWBVH_HD CWBVH_INLINE float shear_row(const float a[3], const float m[3]) {
-    return fma_rn(a[0], m[0], fma_rn(a[1], m[1], mul_rn(a[2], m[2])));
+    return add_rn(add_rn(mul_rn(a[2], m[2]), mul_rn(a[1], m[1])), mul_rn(a[0], m[0]));
 }
 
 /// Hit distance: t = n.(v0 - o) / n.d, n = (v1 - v0) x (v2 - v0), in double from the
@@ -223,7 +229,14 @@ CWBVH_HD CWBVH_INLINE bool intersect_triangle_watertight(const WatertightRay& w,
                                                          float tmin, float tmax, TriangleHit& out) {
     WatertightEdges e;
     if (!watertight_edges(w, v0, v1, v2, e)) return false;
+    // The float range stage runs on the GPU only. It rejects only what plane_t's double
+    // range test below rejects (its bound; tests/traverse/triangle_range_test.cpp checks
+    // both on the same inputs), so skipping it changes no result. On the host its fmas
+    // are libm calls without -mfma and double is as fast as float: with the stage the
+    // CPU traversal was 1.7x slower (sponza_dabrovic nave, 256x256, 1 thread).
+#if defined(__CUDA_ARCH__)
     if (watertight_range_miss(w, v0, v1, v2, tmin, tmax)) return false;
+#endif
     const float ax = e.ax, ay = e.ay, bx = e.bx, by = e.by, cx = e.cx, cy = e.cy;
     const float eu = e.eu, ev = e.ev, ew = e.ew;
 
