@@ -5,6 +5,8 @@ repository): absent inputs skip, unless CI=true, where they fail."""
 import os
 import pathlib
 import subprocess
+import threading
+import time
 
 import pytest
 
@@ -24,6 +26,26 @@ def require(path, what):
     if os.environ.get("CI", "").lower() == "true":
         pytest.fail(message + " (CI=true: required)")
     pytest.skip(message)
+
+
+def ticks_while(fn):
+    """Runs fn() while another thread appends a time stamp every millisecond; returns
+    (seconds fn took, stamps taken while it ran). Few stamps mean fn held the GIL."""
+    ticks, done = [], threading.Event()
+
+    def ticker():
+        while not done.is_set():
+            ticks.append(time.perf_counter())
+            time.sleep(0.001)
+
+    th = threading.Thread(target=ticker)
+    th.start()
+    start = time.perf_counter()
+    fn()
+    end = time.perf_counter()
+    done.set()
+    th.join()
+    return end - start, [t for t in ticks if start < t < end]
 
 
 def tool(name):

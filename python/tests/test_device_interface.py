@@ -60,7 +60,10 @@ class RecordingHandle:
     def trace_device(self, org, org_row, dir_, dir_row, n, tmin, tmax, stream, any_hit, watertight):
         self.calls.append(dict(org=org, org_row=org_row, dir=dir_, dir_row=dir_row, n=n, tmin=tmin, tmax=tmax,
                                stream=stream, any_hit=any_hit, watertight=watertight))
-        buf = np.zeros((n, 4), np.float32)
+        return self.wrap(np.zeros((n, 4), np.float32))
+
+    def wrap(self, buf):
+        """buf as the module's device buffer (ptr, nbytes, device), kept for the test."""
         self.buffers.append(buf)
 
         class Buffer:

@@ -4,12 +4,12 @@ N, several Python threads at once (and the GIL released meanwhile), a Scene outl
 import os
 import shutil
 import threading
-import time
 
 import numpy as np
 import pytest
 
 import cwbvh
+from conftest import ticks_while
 
 
 @pytest.fixture
@@ -101,23 +101,8 @@ def test_several_threads_tracing_at_once(bunny, rays):
 
 def test_gil_released_while_tracing(bunny):
     rays = cwbvh.camera_rays(bunny, width=1024, height=1024)
-    ticks = []
-    done = threading.Event()
-
-    def ticker():
-        while not done.is_set():
-            ticks.append(time.perf_counter())
-            time.sleep(0.001)
-
-    th = threading.Thread(target=ticker)
-    th.start()
-    start = time.perf_counter()
-    bunny.trace(rays, threads=1)
-    end = time.perf_counter()
-    done.set()
-    th.join()
-    during = [t for t in ticks if start < t < end]
-    assert end - start > 0.05
+    seconds, during = ticks_while(lambda: bunny.trace(rays, threads=1))
+    assert seconds > 0.05
     assert len(during) >= 5, "the ticker thread did not run while trace ran: GIL held?"
 
 

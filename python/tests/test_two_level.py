@@ -11,13 +11,12 @@ import json
 import math
 import struct
 import threading
-import time
 
 import numpy as np
 import pytest
 
 import cwbvh
-from conftest import SCENES_DIR, require, run, tool
+from conftest import SCENES_DIR, require, run, ticks_while, tool
 from test_device_interface import FakeCAI, RecordingHandle
 
 MISS = cwbvh.MISS
@@ -375,22 +374,9 @@ def test_trace_input_forms_threads_and_gil(instanced_files):
         assert all(np.array_equal(r, ref_bits) and np.array_equal(i, ref.instance) for r, i in results)
         # the GIL is released while the two-level trace runs
         many = random_rays(lo, hi, 400000, 3)
-        ticks, done = [], threading.Event()
-
-        def ticker():
-            while not done.is_set():
-                ticks.append(time.perf_counter())
-                time.sleep(0.001)
-
-        th = threading.Thread(target=ticker)
-        th.start()
-        start = time.perf_counter()
-        two.trace(many, threads=1)
-        end = time.perf_counter()
-        done.set()
-        th.join()
-        assert end - start > 0.02
-        assert len([x for x in ticks if start < x < end]) >= 3, "the ticker did not run: GIL held?"
+        seconds, during = ticks_while(lambda: two.trace(many, threads=1))
+        assert seconds > 0.02
+        assert len(during) >= 3, "the ticker did not run: GIL held?"
 
 
 def test_diffuse_rays_bounce_off_world_triangles(instanced_files):
@@ -446,14 +432,7 @@ class TwoLevelRecordingHandle(RecordingHandle):
         self.calls.append(dict(org=org, n=n, stream=stream))
         buf = np.zeros(5 * n, np.uint32)
         buf[4 * n:] = np.arange(n, dtype=np.uint32)
-        self.buffers.append(buf)
-
-        class Buffer:
-            ptr = buf.ctypes.data
-            nbytes = buf.nbytes
-            device = 0
-            keep = buf
-        return Buffer()
+        return self.wrap(buf)
 
 
 def test_device_path_instance_column(instanced_files, bunny_file):
