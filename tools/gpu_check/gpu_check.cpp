@@ -568,6 +568,14 @@ void print_summary(const std::vector<Row>& rows) {
     }
 }
 
+/// A CSV number cell: empty where the kernel did not run, else %.6g (both CSV writers).
+std::string csv_num(bool ran, double v) {
+    if (!ran) return std::string();
+    char b[32];
+    std::snprintf(b, sizeof b, "%.6g", v);
+    return std::string(b);
+}
+
 bool write_csv(const std::string& path, const std::vector<Row>& rows, const std::string& device, int width,
                int height, int repeat) {
     std::ofstream f(path);
@@ -576,12 +584,7 @@ bool write_csv(const std::string& path, const std::vector<Row>& rows, const std:
          "cwbvh_over_bvh2,cwbvh_nodes_per_ray,cwbvh_tris_per_ray,bvh2_nodes_per_ray,bvh2_tris_per_ray,"
          "cwbvh_mismatches,bvh2_mismatches,cwbvh_ties,bvh2_ties,cwbvh_overflows,bvh2_overflows,"
          "optix_ms,optix_mrays,cwbvh_over_optix,optix_mismatches,optix_hit_vs_miss,optix_ties,in_means\n";
-    auto num = [](bool ran, double v) {
-        if (!ran) return std::string();
-        char b[32];
-        std::snprintf(b, sizeof b, "%.6g", v);
-        return std::string(b);
-    };
+    const auto& num = csv_num;
     auto cnt = [](bool ran, uint64_t v) { return ran ? std::to_string(v) : std::string(); };
     for (const Row& r : rows) {
         const KernelResult &c = r.k[kCw], &b = r.k[kB2], &o = r.k[kOx];
@@ -608,12 +611,7 @@ bool write_two_level_csv(const std::string& path, const std::vector<Row>& rows, 
          "two_level_mrays,cwbvh_ms,cwbvh_mrays,two_level_over_cwbvh,two_level_nodes_per_ray,two_level_tris_per_ray,"
          "two_level_mismatches,two_level_near,two_level_overflows,flat_compared,flat_disagreeing,flat_hit_vs_miss,"
          "flat_edge,flat_t,flat_t_rounding,flat_source,flat_ties,flat_worst_rel,in_means\n";
-    auto num = [](bool ran, double v) {
-        if (!ran) return std::string();
-        char b[32];
-        std::snprintf(b, sizeof b, "%.6g", v);
-        return std::string(b);
-    };
+    const auto& num = csv_num;
     for (const Row& r : rows) {
         if (!r.tl.present) continue;
         const KernelResult &t = r.tl.k, &c = r.k[kCw];
