@@ -269,7 +269,8 @@ CWBVH_HD CWBVH_INLINE void bvh2_lane_triangle_step(Bvh2Lane<kTest>& l, Bvh2LaneM
     const uint32_t word = ~uint32_t(l.leaf);  // (first << leaf_bits) | (count - 1)
     const TriangleRecord tri = load(s.tris + (word >> s.leaf_bits));
     TriangleHit th;
-    if (l.tri_test(tri, l.tmin, l.tmax, th) && (th.t < l.tmax || tri.prim < m.prim)) {
+    // with_org: the origin from the box test's ray (the same values; one copy in registers).
+    if (l.tri_test.with_org(l.ray.org)(tri, l.tmin, l.tmax, th) && (th.t < l.tmax || tri.prim < m.prim)) {
         l.tmax = th.t;
         m.u = th.u;
         m.v = th.v;
