@@ -77,22 +77,37 @@ enum class NodeStep : uint32_t {
     kBadIndex = 3,   ///< the child index is outside NODE (TraceStatus::kBadIndex)
 };
 
-/// Node step, first half: takes the next child of the node group (highest bit
-/// first), pushes the rest of the group if it still has node children, and returns
-/// the child's index. A group without node bits is a (popped) triangle group and
-/// becomes the triangle group.
+/// Node step, first part (call only when has_node_work()): takes the next child of the
+/// node group (highest bit first) off the group and returns its NODE index, not yet
+/// checked against the section's size. The group's highest bit is a node bit (>= 24),
+/// so its slot is bit & 7 (not bit - 24: one instruction less in the kernel).
+template <TriangleTest kTest>
+CWBVH_HD CWBVH_INLINE uint32_t take_next_child(CwbvhLane<kTest>& l) {
+    const uint32_t hits = l.node_group.hits;
+    const int bit = highest_bit(hits);
+    l.node_group.hits = hits & ~(1u << bit);
+    const uint32_t slot = (uint32_t(bit) & 7u) ^ l.nray.octinv;
+    return l.node_group.base + uint32_t(popcount32(hits & 0xFFu & ((1u << slot) - 1u)));
+}
+
+/// A group without node bits (a popped triangle group) becomes the triangle group.
+template <TriangleTest kTest>
+CWBVH_HD CWBVH_INLINE void take_triangle_group(CwbvhLane<kTest>& l) {
+    l.tri_group = l.node_group;
+    l.node_group = StackEntry{0u, 0u};
+}
+
+/// Node step, first half, whole: take_next_child, then pushes the rest of the group if
+/// it still has node children, and checks the index; a group without node bits becomes
+/// the triangle group (take_triangle_group). The warp model runs this; the kernel runs
+/// the same parts inline, in the same order.
 template <TriangleTest kTest, class Stack>
 CWBVH_HD CWBVH_INLINE NodeStep next_node(CwbvhLane<kTest>& l, Stack& stack, uint32_t node_count, uint32_t& index) {
     if (!l.has_node_work()) {
-        l.tri_group = l.node_group;
-        l.node_group = StackEntry{0u, 0u};
+        take_triangle_group(l);
         return NodeStep::kNoNode;
     }
-    const int bit = highest_bit(l.node_group.hits);
-    const uint32_t imask = l.node_group.hits & 0xFFu;
-    l.node_group.hits &= ~(1u << bit);
-    const uint32_t slot = (uint32_t(bit) - 24u) ^ l.nray.octinv;
-    index = l.node_group.base + uint32_t(popcount32(imask & ((1u << slot) - 1u)));
+    index = take_next_child(l);
     if (l.has_node_work() && !stack.push(l.node_group)) return NodeStep::kOverflow;
     if (index >= node_count) return NodeStep::kBadIndex;
     return NodeStep::kVisit;

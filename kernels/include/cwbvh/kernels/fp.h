@@ -124,10 +124,14 @@ CWBVH_HD CWBVH_INLINE double sub_rn(double a, double b) {
 #endif
 }
 
-/// Index of the highest set bit (x != 0): PTX bfind / x86 bsr.
+/// Index of the highest set bit (x != 0): PTX bfind / x86 bsr. On the device as bfind
+/// itself (SASS FLO): written as 31 - __clz(x), nvcc emits FLO and then two subtractions
+/// (31 - (31 - FLO)) that it does not fold, in every node and triangle step (issue 18).
 CWBVH_HD CWBVH_INLINE int highest_bit(uint32_t x) {
 #if defined(__CUDA_ARCH__)
-    return 31 - __clz(int(x));
+    uint32_t b;
+    asm("bfind.u32 %0, %1;" : "=r"(b) : "r"(x));
+    return int(b);
 #else
     return 31 - __builtin_clz(x);
 #endif

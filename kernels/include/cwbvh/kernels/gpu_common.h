@@ -9,7 +9,7 @@
 // value another lane has not yet produced. cwbvh-facts 1.9 item 8.
 #pragma once
 
-#if !defined(__CUDACC__)
+#if !defined(__CUDACC__) && !defined(CWBVH_WARP_EMULATION)  // tests/model/kernel_emulation.h
 #error "cwbvh/kernels/gpu_common.h is device code: include it from .cu files only"
 #endif
 
@@ -67,7 +67,7 @@ __device__ __forceinline__ TriangleRecord load_triangle(const TriangleRecord* p)
     static_assert(sizeof(TriangleRecord) == 5 * sizeof(float2));
     const float2* q = reinterpret_cast<const float2*>(p);
     float2 v[5];
-#pragma unroll
+    CWBVH_UNROLL
     for (int i = 0; i < 5; ++i) v[i] = __ldg(q + i);
     TriangleRecord t;
     memcpy(&t, v, sizeof(t));
@@ -92,7 +92,7 @@ __device__ __forceinline__ unsigned lanemask_lt(unsigned lane) { return (1u << l
 /// Warp-sum of a per-lane counter, added once per warp to a global total.
 __device__ __forceinline__ void warp_add(unsigned long long* total, uint32_t value, unsigned lane) {
     unsigned long long v = value;
-#pragma unroll
+    CWBVH_UNROLL
     for (int off = 16; off > 0; off >>= 1) v += __shfl_down_sync(kFullMask, v, off);
     if (lane == 0 && v != 0) atomicAdd(total, v);
 }

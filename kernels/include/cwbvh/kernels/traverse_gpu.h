@@ -17,7 +17,7 @@
 //   gpu_common.h        - launch parameters, loads, warp reductions.
 #pragma once
 
-#if !defined(__CUDACC__)
+#if !defined(__CUDACC__) && !defined(CWBVH_WARP_EMULATION)  // tests/model/kernel_emulation.h
 #error "cwbvh/kernels/traverse_gpu.h is device code: include it from .cu files only"
 #endif
 
@@ -133,16 +133,20 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
         // ---- Traversal iterations (warp-uniform loop) until too much work is lost.
         int lost = 0;
         for (;;) {
+            // next_node's parts inline (no status to return and switch on: issue 18).
             if (active) {
-                uint32_t index = 0;
-                const NodeStep step = next_node(l, stack, p.node_count, index);
-                if (step == NodeStep::kVisit) {
-                    if (kCount) ++s_counts[0][threadIdx.x];
-                    visit_node(l, load_node_words(p.nodes + index), p.node_scale.one_bits);
-                } else if (step == NodeStep::kOverflow) {
-                    finish(TraceStatus::kStackOverflow);
-                } else if (step == NodeStep::kBadIndex) {
-                    finish(TraceStatus::kBadIndex);
+                if (l.has_node_work()) {
+                    const uint32_t index = take_next_child(l);
+                    if (l.has_node_work() && !stack.push(l.node_group)) {
+                        finish(TraceStatus::kStackOverflow);
+                    } else if (index >= p.node_count) {
+                        finish(TraceStatus::kBadIndex);
+                    } else {
+                        if (kCount) ++s_counts[0][threadIdx.x];
+                        visit_node(l, load_node_words(p.nodes + index), p.node_scale.one_bits);
+                    }
+                } else {
+                    take_triangle_group(l);
                 }
             }
 

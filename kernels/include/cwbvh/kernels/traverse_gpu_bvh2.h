@@ -18,7 +18,7 @@
 // nothing to do run an iteration as a no-op (gpu_common.h).
 #pragma once
 
-#if !defined(__CUDACC__)
+#if !defined(__CUDACC__) && !defined(CWBVH_WARP_EMULATION)  // tests/model/kernel_emulation.h
 #error "cwbvh/kernels/traverse_gpu_bvh2.h is device code: include it from .cu files only"
 #endif
 

@@ -1,0 +1,235 @@
+// The CWBVH kernel's body (traverse_gpu.h, trace_cwbvh_persistent) run on the CPU by
+// kernel_emulation.h: one OS thread per CUDA thread, warp votes and shuffles as
+// barriers. With one warp the kernel must do exactly what the warp model
+// (warp_model.h) does with one warp: same rays in the same lanes, same postponing,
+// so the same hits bit for bit, the same statuses and the same node and triangle
+// counts. Issue 18: the kernel's warp control changes without a GPU at hand; these
+// tests run it. Device-only branches (#if __CUDA_ARCH__) are not covered here (see
+// kernel_emulation.h).
+#include "model/kernel_emulation.h"  // first: defines what the kernel headers need
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <cstring>
+#include <vector>
+
+#include "cwbvh/kernels/traverse_gpu.h"
+#include "cwbvh/kernels/warp_model.h"
+#include "model/model_fixture.h"
+
+namespace cwbvh {
+namespace {
+
+using model_test::expect_same_hits;
+using model_test::Fixture;
+using model_test::reference;
+
+/// 5,000 triangles, 40 x 40 camera rays and their bounce: one OS thread per lane
+/// makes every warp vote a context switch, so the emulated kernels get fewer rays than
+/// the warp model's tests.
+const Fixture& fixture() {
+    static const Fixture f = model_test::make_fixture(5000, 40);
+    return f;
+}
+
+struct KernelRun {
+    std::vector<Hit> hits;
+    std::vector<TraceStatus> status;
+    gpu::WorkArea work{};
+};
+
+template <TriangleTest kTest, HitMode kMode, bool kCount>
+void launch(const gpu::LaunchParams& p, unsigned threads) {
+    cwbvh_emulation::run_block(threads, [&] {
+        // The kernel's shared stack (kernels_cwbvh.cu): [warp][entry][lane].
+        static PackedEntry s_stack[gpu::kCwbvhWarpsPerBlock][kGpuSharedStackEntries][gpu::kWarpSize];
+        gpu::trace_cwbvh_persistent<kTest, kMode, kCount>(p, &s_stack[threadIdx.x / gpu::kWarpSize][0][0]);
+    });
+}
+
+template <TriangleTest kTest, HitMode kMode>
+void launch(const gpu::LaunchParams& p, unsigned threads, bool count) {
+    if (count)
+        launch<kTest, kMode, true>(p, threads);
+    else
+        launch<kTest, kMode, false>(p, threads);
+}
+
+/// One launch of the kernel body over `nodes` (one block of `warps` warps: the kernel's
+/// persistent loop takes every ray), with the scene constants the device upload computes.
+KernelRun run_kernel(const std::vector<CwbvhNode>& nodes, const Fixture& f, TriangleTest test, HitMode mode,
+                     bool count, unsigned warps = 1) {
+    KernelRun r;
+    r.hits.assign(f.rays.size(), Hit{-1.0f, -1.0f, -1.0f, 12345u});
+    r.status.assign(f.rays.size(), TraceStatus(0xEEu));
+    gpu::LaunchParams p{};
+    p.nodes = nodes.data();
+    p.node_count = uint32_t(nodes.size());
+    p.tris = f.scene.triangles.data();
+    p.tri_count = uint32_t(f.scene.triangles.size());
+    p.rays = f.rays.data();
+    p.hits = r.hits.data();
+    p.status = r.status.data();
+    p.ray_count = uint32_t(f.rays.size());
+    p.work = &r.work;
+    p.node_scale = node_scale(nodes.data(), nodes.size());
+    const unsigned threads = warps * unsigned(gpu::kWarpSize);
+    if (test == TriangleTest::kWatertight) {
+        if (mode == HitMode::kClosest)
+            launch<TriangleTest::kWatertight, HitMode::kClosest>(p, threads, count);
+        else
+            launch<TriangleTest::kWatertight, HitMode::kAny>(p, threads, count);
+    } else {
+        if (mode == HitMode::kClosest)
+            launch<TriangleTest::kFast, HitMode::kClosest>(p, threads, count);
+        else
+            launch<TriangleTest::kFast, HitMode::kAny>(p, threads, count);
+    }
+    return r;
+}
+
+/// The warp model with one warp: the emulated one-warp kernel's schedule.
+WarpModelStats run_model(const std::vector<CwbvhNode>& nodes, const Fixture& f, TriangleTest test, HitMode mode,
+                         std::vector<Hit>& hits) {
+    WarpModelOptions o;
+    o.mode = mode;
+    o.test = test;
+    o.warps = 1;
+    hits.assign(f.rays.size(), Hit{-1.0f, -1.0f, -1.0f, 12345u});
+    return model_cwbvh_warps(nodes.data(), nodes.size(), f.scene.triangles.data(), f.scene.triangles.size(),
+                             f.rays.data(), hits.data(), f.rays.size(), o);
+}
+
+void expect_bitwise_equal(const std::vector<Hit>& got, const std::vector<Hit>& want) {
+    ASSERT_EQ(got.size(), want.size());
+    size_t bad = 0;
+    for (size_t i = 0; i < want.size(); ++i)
+        if (std::memcmp(&got[i], &want[i], sizeof(Hit)) != 0 && ++bad <= 3)
+            ADD_FAILURE() << "ray " << i << ": kernel prim " << got[i].prim << " t " << got[i].t << ", model prim "
+                          << want[i].prim << " t " << want[i].t;
+    EXPECT_EQ(bad, 0u);
+}
+
+size_t count_status(const std::vector<TraceStatus>& s, TraceStatus which) {
+    size_t n = 0;
+    for (TraceStatus x : s) n += x == which;
+    return n;
+}
+
+TEST(KernelEmulation, CwbvhKernelAnswersAsTheWarpModelBitForBit) {
+    const Fixture& f = fixture();
+    for (HitMode mode : {HitMode::kClosest, HitMode::kAny}) {
+        for (TriangleTest test : {TriangleTest::kWatertight, TriangleTest::kFast}) {
+            std::vector<Hit> model_hits;
+            const WarpModelStats s = run_model(f.scene.nodes, f, test, mode, model_hits);
+            for (bool count : {false, true}) {
+                SCOPED_TRACE(testing::Message() << "mode " << int(mode) << " test " << int(test) << " count " << count);
+                const KernelRun k = run_kernel(f.scene.nodes, f, test, mode, count);
+                expect_bitwise_equal(k.hits, model_hits);
+                EXPECT_EQ(k.work.next_ray >= f.rays.size(), true) << "every ray was fetched";
+                EXPECT_EQ(k.work.invalid, 1u);
+                EXPECT_EQ(count_status(k.status, TraceStatus::kInvalidRay), 1u);
+                EXPECT_EQ(count_status(k.status, TraceStatus::kOk), f.rays.size() - 1);
+                EXPECT_EQ(k.work.overflows + k.work.bad_indices, 0u);
+                if (count) {
+                    EXPECT_EQ(k.work.nodes, s.lane_node_steps) << "the same node steps as the model";
+                    EXPECT_EQ(k.work.triangles, s.lane_tri_tests) << "the same triangle tests as the model";
+                } else {
+                    EXPECT_EQ(k.work.nodes + k.work.triangles, 0u) << "the production variant counts nothing";
+                }
+            }
+        }
+    }
+}
+
+TEST(KernelEmulation, FourWarpsOfABlockGiveTheReferenceHits) {
+    const Fixture& f = fixture();
+    for (HitMode mode : {HitMode::kClosest, HitMode::kAny}) {
+        SCOPED_TRACE(testing::Message() << "mode " << int(mode));
+        const KernelRun k = run_kernel(f.scene.nodes, f, TriangleTest::kWatertight, mode, false,
+                                       unsigned(gpu::kCwbvhWarpsPerBlock));
+        expect_same_hits(k.hits, reference(f, mode, TriangleTest::kWatertight), mode);
+        EXPECT_EQ(count_status(k.status, TraceStatus::kOk), f.rays.size() - 1);
+    }
+}
+
+/// A chain of `count` nodes, each with two internal children over the same box, node i's
+/// at i + 1 and i + 2 (the last two nodes are empty): a ray through the box takes one
+/// child and pushes the other at every level, so the stack needs about count / 2
+/// entries, more than the kernel's 64 (kGpuStackEntries) for count = 200. No cycle:
+/// every ray ends.
+std::vector<CwbvhNode> deep_chain(uint32_t count) {
+    std::vector<CwbvhNode> nodes(count);
+    for (uint32_t i = 0; i < count; ++i) {
+        CwbvhNode& n = nodes[i];
+        std::memset(&n, 0, sizeof n);
+        n.e[0] = n.e[1] = n.e[2] = 127 - 8;  // scale 2^-8: the box [0, 255/256]^3
+        if (i + 2 >= count) continue;        // empty node
+        n.imask = 0x03;
+        n.child_base = i + 1;
+        for (int s = 0; s < 2; ++s) {
+            n.meta[s] = uint8_t(0x20 | (24 + s));
+            for (int a = 0; a < 3; ++a) n.q_hi[a][s] = 255;
+        }
+    }
+    return nodes;
+}
+
+TEST(KernelEmulation, CorruptTreesEndRaysAsTheWarpModelDoes) {
+    const Fixture& f = fixture();
+    // (a) children past NODE: kBadIndex, with the closest hit found before;
+    // (b) a tree deeper than the stack: kStackOverflow (the fixture's rays, over a deep
+    //     chain in the unit cube that the fixture's scene does not reach: the rays that
+    //     cross the cube overflow; rays that miss it end with a miss).
+    size_t corrupt = f.scene.nodes.size();
+    for (size_t i = f.scene.nodes.size(); i-- > 1;)
+        if (f.scene.nodes[i].imask != 0) {
+            corrupt = i;
+            break;
+        }
+    ASSERT_LT(corrupt, f.scene.nodes.size());
+    std::vector<CwbvhNode> bad_index = f.scene.nodes;
+    bad_index[corrupt].child_base = 0x7FFFFFF0u;
+    std::vector<CwbvhNode> deep = deep_chain(200);
+    Fixture into_cube = f;  // the same rays aimed through the cube
+    for (size_t i = 0; i < into_cube.rays.size(); ++i) {
+        Ray& r = into_cube.rays[i];
+        if (!ray_is_traceable(r)) continue;
+        const float o[3] = {0.5f, 0.5f, 0.5f};
+        for (int a = 0; a < 3; ++a) r.org[a] = o[a] - 2.0f * r.dir[a];
+        r.tmin = 0.0f;
+        r.tmax = i % 7 == 0 ? 1.0f : kInfinity;  // some rays end before the cube
+    }
+    for (const std::vector<CwbvhNode>* nodes : {&bad_index, &deep}) {
+        const bool is_deep = nodes == &deep;
+        const Fixture& rays = is_deep ? into_cube : f;
+        SCOPED_TRACE(is_deep ? "deep" : "bad index");
+        std::vector<Hit> model_hits;
+        const WarpModelStats s = run_model(*nodes, rays, TriangleTest::kWatertight, HitMode::kClosest, model_hits);
+        const KernelRun k = run_kernel(*nodes, rays, TriangleTest::kWatertight, HitMode::kClosest, true);
+        expect_bitwise_equal(k.hits, model_hits);
+        EXPECT_EQ(k.work.bad_indices, s.bad_indices);
+        EXPECT_EQ(k.work.overflows, s.stack_overflows);
+        EXPECT_EQ(count_status(k.status, TraceStatus::kBadIndex), s.bad_indices);
+        EXPECT_EQ(count_status(k.status, TraceStatus::kStackOverflow), s.stack_overflows);
+        EXPECT_EQ(k.work.nodes, s.lane_node_steps);
+        EXPECT_EQ(k.work.triangles, s.lane_tri_tests);
+        EXPECT_GT(is_deep ? s.stack_overflows : s.bad_indices, 0u) << "the corruption is reached";
+        if (is_deep) {
+            // The CPU reference agrees ray by ray (no triangles: postponing cannot matter).
+            std::vector<Hit> ref(rays.rays.size());
+            std::vector<TraceStatus> ref_status(rays.rays.size());
+            CpuTraceOptions co;
+            co.threads = 1;
+            co.statuses = ref_status.data();
+            trace_cwbvh_cpu(nodes->data(), nodes->size(), rays.scene.triangles.data(), rays.scene.triangles.size(),
+                            rays.rays.data(), ref.data(), rays.rays.size(), co);
+            EXPECT_EQ(k.status, ref_status);
+            EXPECT_LT(s.stack_overflows, rays.rays.size() - 1) << "the rays that end before the cube do not overflow";
+        }
+    }
+}
+
+}  // namespace
+}  // namespace cwbvh
