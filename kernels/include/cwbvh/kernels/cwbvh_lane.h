@@ -72,7 +72,7 @@ struct CwbvhLane {
 /// Result of the first half of a node step.
 enum class NodeStep : uint32_t {
     kVisit = 0,      ///< `index` names the node to load and pass to visit_node
-    kNoNode = 1,     ///< the group was a triangle group: it moved to tri_group
+    kNoNode = 1,     ///< no node work: the lane holds only a (popped) triangle group
     kOverflow = 2,   ///< the stack is full (TraceStatus::kStackOverflow)
     kBadIndex = 3,   ///< the child index is outside NODE (TraceStatus::kBadIndex)
 };
@@ -90,23 +90,13 @@ CWBVH_HD CWBVH_INLINE uint32_t take_next_child(CwbvhLane<kTest>& l) {
     return l.node_group.base + uint32_t(popcount32(hits & 0xFFu & ((1u << slot) - 1u)));
 }
 
-/// A group without node bits (a popped triangle group) becomes the triangle group.
-template <TriangleTest kTest>
-CWBVH_HD CWBVH_INLINE void take_triangle_group(CwbvhLane<kTest>& l) {
-    l.tri_group = l.node_group;
-    l.node_group = StackEntry{0u, 0u};
-}
-
 /// Node step, first half, whole: take_next_child, then pushes the rest of the group if
-/// it still has node children, and checks the index; a group without node bits becomes
-/// the triangle group (take_triangle_group). The warp model runs this; the kernel runs
-/// the same parts inline, in the same order.
+/// it still has node children, and checks the index. Without node work (the lane popped
+/// a triangle group, which pop_if_idle put in tri_group) there is no node step. The warp
+/// model runs this; the kernel runs the same parts inline, in the same order.
 template <TriangleTest kTest, class Stack>
 CWBVH_HD CWBVH_INLINE NodeStep next_node(CwbvhLane<kTest>& l, Stack& stack, uint32_t node_count, uint32_t& index) {
-    if (!l.has_node_work()) {
-        take_triangle_group(l);
-        return NodeStep::kNoNode;
-    }
+    if (!l.has_node_work()) return NodeStep::kNoNode;
     index = take_next_child(l);
     if (l.has_node_work() && !stack.push(l.node_group)) return NodeStep::kOverflow;
     if (index >= node_count) return NodeStep::kBadIndex;
@@ -162,13 +152,23 @@ CWBVH_HD CWBVH_INLINE bool postpone_triangles(CwbvhLane<kTest>& l, Stack& stack)
     return true;
 }
 
-/// End of an iteration: a lane whose node group is used up pops the next group.
-/// Returns true when the ray is done (nothing left on the stack).
+/// End of an iteration: a lane whose node group is used up pops the next group into
+/// the group it is: a node group (node bits) becomes the node group, a postponed
+/// triangle group the triangle group, to be tested in the next iteration's rounds.
+/// (Until issue 18 the node group took either, and the next node step moved a triangle
+/// group over; that second branch of the kernel's node step cost register copies that
+/// nvcc ran on every node step.) The triangle group is empty here: every iteration's
+/// triangle rounds run until no lane wants triangles. Returns true when the ray is done
+/// (nothing left on the stack).
 template <TriangleTest kTest, class Stack>
 CWBVH_HD CWBVH_INLINE bool pop_if_idle(CwbvhLane<kTest>& l, Stack& stack) {
     if (l.has_node_work()) return false;
     if (stack.empty()) return true;
-    l.node_group = stack.pop();
+    const StackEntry e = stack.pop();
+    if (e.hits > 0x00FFFFFFu)
+        l.node_group = e;
+    else
+        l.tri_group = e;
     return false;
 }
 

@@ -74,7 +74,6 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
     PackedEntry spill[kGpuLocalStackEntries];  // local memory, apart from the stack object (gpu_stack.h)
     GpuStack stack(warp_stack_base + lane, spill);
 
-    bool active = false;
     uint32_t ray_id = 0;
     CwbvhLane<kTest> l(Ray{{0.0f, 0.0f, 0.0f}, 0.0f, {1.0f, 1.0f, 1.0f}, 0.0f});
     // Statistics variant: the per-lane counters live in shared memory, not in two
@@ -90,25 +89,30 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
     __shared__ float2 s_uv[kCwbvhBlockThreads];
     bool exhausted = false;  // warp-uniform: the global ray counter ran past the end
 
-    // Ending a ray is recorded here and carried out once per iteration, at the end
-    // (one copy of the hit write and of the closest hit's re-test in the code).
-    constexpr uint32_t kRunning = 0xFFFFFFFFu;
-    uint32_t ending = kRunning;  // TraceStatus of a ray that ended in this iteration
+    // The lane's one state word: no ray (kIdle), tracing ray_id (kRunning), or the
+    // TraceStatus of the ray that ended in this iteration, carried out once, at the
+    // iteration's end (one copy of the hit write in the code). One word, not an
+    // `active` flag beside an `ending` code: under the 80-register cap nvcc kept the
+    // flag as a byte in a shared register and copied both around the loop (issue 18).
+    // A ray that ends drops its triangle group, so a lane without a ray never wants
+    // triangles and the rounds need not test the state.
+    constexpr uint32_t kRunning = 0xFFFFFFFFu, kIdle = 0xFFFFFFFEu;
+    uint32_t state = kIdle;
     auto finish = [&](TraceStatus status) {
-        ending = uint32_t(status);
-        active = false;
+        state = uint32_t(status);
+        l.tri_group.hits = 0;
     };
 
     for (;;) {
         // ---- Refill idle lanes: one atomicAdd per warp, base broadcast by shuffle.
-        const unsigned idle = __ballot_sync(kFullMask, !active);
+        const unsigned idle = __ballot_sync(kFullMask, state == kIdle);
         if (idle != 0 && !exhausted) {
             const unsigned want = __popc(idle);
             unsigned base = 0;
             if (lane == 0) base = atomicAdd(&p.work->next_ray, want);
             base = __shfl_sync(kFullMask, base, 0);
             if (base + want >= p.ray_count) exhausted = true;  // no overflow: ray_count <= 2^31
-            if (!active) {
+            if (state == kIdle) {
                 const uint32_t id = base + __popc(idle & lanemask_lt(lane));
                 if (id < p.ray_count) {
                     ray_id = id;
@@ -120,12 +124,12 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                     } else {
                         l = CwbvhLane<kTest>(ray, p.node_scale);
                         stack.clear();
-                        active = true;
+                        state = kRunning;
                     }
                 }
             }
         }
-        if (__ballot_sync(kFullMask, active) == 0) {
+        if (__ballot_sync(kFullMask, state == kRunning) == 0) {
             if (exhausted) break;
             continue;  // every fetched ray was invalid: fetch again
         }
@@ -134,7 +138,7 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
         int lost = 0;
         for (;;) {
             // next_node's parts inline (no status to return and switch on: issue 18).
-            if (active) {
+            if (state == kRunning) {
                 if (l.has_node_work()) {
                     const uint32_t index = take_next_child(l);
                     if (l.has_node_work() && !stack.push(l.node_group)) {
@@ -145,15 +149,13 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                         if (kCount) ++s_counts[0][threadIdx.x];
                         visit_node(l, load_node_words(p.nodes + index), p.node_scale.one_bits);
                     }
-                } else {
-                    take_triangle_group(l);
-                }
+                }  // else: no node work, only the triangle group that pop_if_idle filled
             }
 
             // Triangle rounds: one triangle per lane per round; minority lanes postpone.
-            const int active_lanes = __popc(__ballot_sync(kFullMask, active));
+            const int active_lanes = __popc(__ballot_sync(kFullMask, state == kRunning));
             for (;;) {
-                const bool wants = active && l.wants_triangles();
+                const bool wants = l.wants_triangles();
                 const unsigned wanting = __ballot_sync(kFullMask, wants);
                 if (wanting == 0) break;
                 if (wants) {
@@ -175,9 +177,9 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                 }
             }
 
-            if (active && pop_if_idle(l, stack)) finish(TraceStatus::kOk);
-            if (ending != kRunning) {
-                const TraceStatus status = TraceStatus(ending);
+            if (state == kRunning && pop_if_idle(l, stack)) state = uint32_t(TraceStatus::kOk);
+            if (state < kIdle) {
+                const TraceStatus status = TraceStatus(state);
                 // The closest hit so far, also for a ray cut short (overflow, bad index):
                 // what traverse.h returns (hit_tri is always a checked TRIS index).
                 Hit h = make_miss();
@@ -190,10 +192,10 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                 if (status == TraceStatus::kStackOverflow) count_rare(&p.work->overflows);
                 if (status == TraceStatus::kBadIndex) count_rare(&p.work->bad_indices);
                 stack.clear();
-                ending = kRunning;
+                state = kIdle;
             }
 
-            const unsigned act = __ballot_sync(kFullMask, active);
+            const unsigned act = __ballot_sync(kFullMask, state == kRunning);
             if (act == 0) break;
             lost = update_lost_work(lost, __popc(act));
             if (!exhausted && lost >= kDynamicFetchNw) break;
