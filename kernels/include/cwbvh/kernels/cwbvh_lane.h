@@ -115,14 +115,21 @@ CWBVH_HD CWBVH_INLINE void visit_node(CwbvhLane<kTest>& l, const Node& node, uin
     l.tri_group = StackEntry{node_tri_base(node), hitmask & 0x00FFFFFFu};
 }
 
-/// Triangle step, first half: takes the next triangle of the group (highest bit
-/// first); returns its TRIS index, or kNoTriangle when the index is outside TRIS
-/// (TraceStatus::kBadIndex). Call only when wants_triangles().
+/// Triangle step, first part (call only when wants_triangles()): takes the next
+/// triangle of the group (highest bit first) off the group and returns its TRIS index,
+/// not yet checked against the section's size.
 template <TriangleTest kTest>
-CWBVH_HD CWBVH_INLINE uint32_t next_triangle(CwbvhLane<kTest>& l, uint32_t tri_count) {
+CWBVH_HD CWBVH_INLINE uint32_t take_next_triangle(CwbvhLane<kTest>& l) {
     const int bit = highest_bit(l.tri_group.hits);
     l.tri_group.hits &= ~(1u << bit);
-    const uint32_t ti = l.tri_group.base + uint32_t(bit);
+    return l.tri_group.base + uint32_t(bit);
+}
+
+/// Triangle step, first half: take_next_triangle, checked: its TRIS index, or
+/// kNoTriangle when the index is outside TRIS (TraceStatus::kBadIndex).
+template <TriangleTest kTest>
+CWBVH_HD CWBVH_INLINE uint32_t next_triangle(CwbvhLane<kTest>& l, uint32_t tri_count) {
+    const uint32_t ti = take_next_triangle(l);
     return ti < tri_count ? ti : kNoTriangle;
 }
 

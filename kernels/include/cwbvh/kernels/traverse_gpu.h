@@ -162,8 +162,8 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                     if (should_postpone(__popc(wanting), active_lanes, l.has_node_work())) {
                         if (!postpone_triangles(l, stack)) finish(TraceStatus::kStackOverflow);
                     } else {
-                        const uint32_t ti = next_triangle(l, p.tri_count);
-                        if (ti == kNoTriangle) {
+                        const uint32_t ti = take_next_triangle(l);  // next_triangle, checked here
+                        if (ti >= p.tri_count) {
                             finish(TraceStatus::kBadIndex);
                         } else {
                             if (kCount) ++s_counts[1][threadIdx.x];
