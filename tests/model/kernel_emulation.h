@@ -36,6 +36,7 @@
 #endif
 
 #define __device__
+#define __host__
 #define __forceinline__ inline
 // One instance per kernel instantiation, shared by the block's threads: one block at a time.
 #define __shared__ static

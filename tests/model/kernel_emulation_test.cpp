@@ -1,9 +1,9 @@
-// The CWBVH kernel's body (traverse_gpu.h, trace_cwbvh_persistent) run on the CPU by
-// kernel_emulation.h: one OS thread per CUDA thread, warp votes and shuffles as
-// barriers. With one warp the kernel must do exactly what the warp model
-// (warp_model.h) does with one warp: same rays in the same lanes, same postponing,
-// so the same hits bit for bit, the same statuses and the same node and triangle
-// counts. Issue 18: the kernel's warp control changes without a GPU at hand; these
+// The kernels' bodies (traverse_gpu.h trace_cwbvh_persistent, traverse_gpu_bvh2.h
+// trace_bvh2_persistent) run on the CPU by kernel_emulation.h: CUDA threads as
+// fibers, warp votes and shuffles as meeting points of the warp's 32 lanes. With one
+// warp a kernel must do exactly what the warp model (warp_model.h) does with one warp:
+// same rays in the same lanes, same postponing, so the same hits bit for bit, the
+// same statuses and the same node and triangle counts. Issue 18: the kernel's warp control changes without a GPU at hand; these
 // tests run it. Device-only branches (#if __CUDA_ARCH__) are not covered here (see
 // kernel_emulation.h).
 #include "model/kernel_emulation.h"  // first: defines what the kernel headers need
@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "cwbvh/kernels/traverse_gpu.h"
+#include "cwbvh/kernels/traverse_gpu_bvh2.h"
 #include "cwbvh/kernels/warp_model.h"
 #include "model/model_fixture.h"
 
@@ -151,6 +152,67 @@ TEST(KernelEmulation, FourWarpsOfABlockGiveTheReferenceHits) {
                                        unsigned(gpu::kCwbvhWarpsPerBlock));
         expect_same_hits(k.hits, reference(f, mode, TriangleTest::kWatertight), mode);
         EXPECT_EQ(count_status(k.status, TraceStatus::kOk), f.rays.size() - 1);
+    }
+}
+
+template <TriangleTest kTest, HitMode kMode>
+void launch_bvh2(const gpu::LaunchParams& p, bool count) {
+    cwbvh_emulation::run_block(gpu::kWarpSize, [&] {
+        if (count)
+            gpu::trace_bvh2_persistent<kTest, kMode, true>(p);
+        else
+            gpu::trace_bvh2_persistent<kTest, kMode, false>(p);
+    });
+}
+
+TEST(KernelEmulation, Bvh2KernelAnswersAsTheWarpModelBitForBit) {
+    const Fixture& f = fixture();
+    ASSERT_FALSE(f.scene.bvh2.empty());
+    for (HitMode mode : {HitMode::kClosest, HitMode::kAny}) {
+        for (TriangleTest test : {TriangleTest::kWatertight, TriangleTest::kFast}) {
+            WarpModelOptions o;
+            o.mode = mode;
+            o.test = test;
+            o.warps = 1;
+            o.bvh2_kernel = Bvh2Kernel::kAkl2012;  // the kernel's schedule
+            std::vector<Hit> model_hits(f.rays.size());
+            const WarpModelStats s =
+                model_bvh2_warps(f.scene.bvh2.data(), f.scene.bvh2.size(), f.scene.triangles.data(),
+                                 f.scene.triangles.size(), f.rays.data(), model_hits.data(), f.rays.size(), o);
+            for (bool count : {false, true}) {
+                SCOPED_TRACE(testing::Message() << "mode " << int(mode) << " test " << int(test) << " count " << count);
+                KernelRun k;
+                k.hits.assign(f.rays.size(), Hit{-1.0f, -1.0f, -1.0f, 12345u});
+                k.status.assign(f.rays.size(), TraceStatus(0xEEu));
+                gpu::LaunchParams p{};
+                p.bvh2 = f.scene.bvh2.data();
+                p.node_count = uint32_t(f.scene.bvh2.size());
+                p.tris = f.scene.triangles.data();
+                p.tri_count = uint32_t(f.scene.triangles.size());
+                p.rays = f.rays.data();
+                p.hits = k.hits.data();
+                p.status = k.status.data();
+                p.ray_count = uint32_t(f.rays.size());
+                p.work = &k.work;
+                if (test == TriangleTest::kWatertight) {
+                    if (mode == HitMode::kClosest)
+                        launch_bvh2<TriangleTest::kWatertight, HitMode::kClosest>(p, count);
+                    else
+                        launch_bvh2<TriangleTest::kWatertight, HitMode::kAny>(p, count);
+                } else {
+                    if (mode == HitMode::kClosest)
+                        launch_bvh2<TriangleTest::kFast, HitMode::kClosest>(p, count);
+                    else
+                        launch_bvh2<TriangleTest::kFast, HitMode::kAny>(p, count);
+                }
+                expect_bitwise_equal(k.hits, model_hits);
+                EXPECT_EQ(k.work.invalid, 1u);
+                EXPECT_EQ(count_status(k.status, TraceStatus::kInvalidRay), 1u);
+                EXPECT_EQ(count_status(k.status, TraceStatus::kOk), f.rays.size() - 1);
+                EXPECT_EQ(k.work.nodes, count ? s.lane_node_steps : 0u);
+                EXPECT_EQ(k.work.triangles, count ? s.lane_tri_tests : 0u);
+            }
+        }
     }
 }
 

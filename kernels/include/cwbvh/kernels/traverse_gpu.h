@@ -59,13 +59,15 @@ __device__ __forceinline__ void count_rare(unsigned long long* total) { atomicAd
 /// Called by every thread of the block; blockDim.x == kCwbvhBlockThreads.
 /// kCount: also count nodes and triangles per lane (the statistics variant; the
 /// production kernel carries no counters). Warp-level control, identical in the
-/// CPU warp model (warp_model.h, which documents it step by step):
+/// CPU warp model (warp_model.h, which documents it step by step; the tests run this
+/// body on the CPU against it: tests/model/kernel_emulation_test.cpp):
 ///   refill:  lanes without a ray take the next ones from the global counter (one
 ///            atomicAdd per warp);
-///   iterate: every active lane takes one node step; then triangle rounds, one
-///            triangle per wanting lane per round, where a lane postpones its group
-///            when should_postpone(wanting, active, has node work); then lanes
-///            without node work pop; then update_lost_work, and the warp goes back
+///   iterate: every active lane with node work takes one node step; then triangle
+///            rounds, one triangle per wanting lane per round, where a lane postpones
+///            its group when should_postpone(wanting, active, has node work); then
+///            lanes without node work pop the next group (pop_if_idle: into the node
+///            or the triangle group); then update_lost_work, and the warp goes back
 ///            to refill when the lost work reaches kDynamicFetchNw (rays remaining).
 template <TriangleTest kTest, HitMode kMode, bool kCount>
 __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, PackedEntry* warp_stack_base) {

@@ -12,12 +12,13 @@
 //
 // CWBVH warp control, as in trace_cwbvh_persistent (traverse_gpu.h):
 //   1. refill: lanes without a ray take the next rays from the global counter;
-//   2. iteration: (a) node phase: every lane with a ray takes one node step
-//      (next_node + visit_node, or moves a popped triangle group aside);
+//   2. iteration: (a) node phase: every lane with a ray and node work takes one node
+//      step (next_node + visit_node; a lane that popped a triangle group has none);
 //      (b) triangle rounds: while any lane wants triangles, each wanting lane
 //      either postpones its group (should_postpone(wanting, active, has node work))
-//      or tests one triangle; (c) lanes without node work pop; a lane with an empty
-//      stack ends its ray; (d) lost = update_lost_work(lost, active); back to 1 when
+//      or tests one triangle; (c) lanes without node work pop the next group into
+//      the node or the triangle group (pop_if_idle); a lane with an empty stack ends
+//      its ray; (d) lost = update_lost_work(lost, active); back to 1 when
 //      lost >= Nw and rays remain, else next iteration.
 // Warps are scheduled round-robin, one iteration each, and fetch from one shared
 // counter, so a refill takes rays from wherever the counter is (as on the GPU with
