@@ -26,9 +26,8 @@ using model_test::expect_same_hits;
 using model_test::Fixture;
 using model_test::reference;
 
-/// 5,000 triangles, 40 x 40 camera rays and their bounce: one OS thread per lane
-/// makes every warp vote a context switch, so the emulated kernels get fewer rays than
-/// the warp model's tests.
+/// 5,000 triangles, 40 x 40 camera rays and their bounce: every warp vote is 32 fiber
+/// switches, so the emulated kernels get fewer rays than the warp model's tests.
 const Fixture& fixture() {
     static const Fixture f = model_test::make_fixture(5000, 40);
     return f;
@@ -57,16 +56,12 @@ void launch(const gpu::LaunchParams& p, unsigned threads, bool count) {
         launch<kTest, kMode, false>(p, threads);
 }
 
-/// One launch of the kernel body over `nodes` (one block of `warps` warps: the kernel's
-/// persistent loop takes every ray), with the scene constants the device upload computes.
-KernelRun run_kernel(const std::vector<CwbvhNode>& nodes, const Fixture& f, TriangleTest test, HitMode mode,
-                     bool count, unsigned warps = 1) {
-    KernelRun r;
+/// A launch's rays, triangles and outputs (r's arrays filled with values no kernel
+/// writes); the caller sets the tree.
+gpu::LaunchParams launch_params(const Fixture& f, KernelRun& r) {
     r.hits.assign(f.rays.size(), Hit{-1.0f, -1.0f, -1.0f, 12345u});
     r.status.assign(f.rays.size(), TraceStatus(0xEEu));
     gpu::LaunchParams p{};
-    p.nodes = nodes.data();
-    p.node_count = uint32_t(nodes.size());
     p.tris = f.scene.triangles.data();
     p.tri_count = uint32_t(f.scene.triangles.size());
     p.rays = f.rays.data();
@@ -74,6 +69,17 @@ KernelRun run_kernel(const std::vector<CwbvhNode>& nodes, const Fixture& f, Tria
     p.status = r.status.data();
     p.ray_count = uint32_t(f.rays.size());
     p.work = &r.work;
+    return p;
+}
+
+/// One launch of the kernel body over `nodes` (one block of `warps` warps: the kernel's
+/// persistent loop takes every ray), with the scene constants the device upload computes.
+KernelRun run_kernel(const std::vector<CwbvhNode>& nodes, const Fixture& f, TriangleTest test, HitMode mode,
+                     bool count, unsigned warps = 1) {
+    KernelRun r;
+    gpu::LaunchParams p = launch_params(f, r);
+    p.nodes = nodes.data();
+    p.node_count = uint32_t(nodes.size());
     p.node_scale = node_scale(nodes.data(), nodes.size());
     const unsigned threads = warps * unsigned(gpu::kWarpSize);
     if (test == TriangleTest::kWatertight) {
@@ -182,18 +188,9 @@ TEST(KernelEmulation, Bvh2KernelAnswersAsTheWarpModelBitForBit) {
             for (bool count : {false, true}) {
                 SCOPED_TRACE(testing::Message() << "mode " << int(mode) << " test " << int(test) << " count " << count);
                 KernelRun k;
-                k.hits.assign(f.rays.size(), Hit{-1.0f, -1.0f, -1.0f, 12345u});
-                k.status.assign(f.rays.size(), TraceStatus(0xEEu));
-                gpu::LaunchParams p{};
+                gpu::LaunchParams p = launch_params(f, k);
                 p.bvh2 = f.scene.bvh2.data();
                 p.node_count = uint32_t(f.scene.bvh2.size());
-                p.tris = f.scene.triangles.data();
-                p.tri_count = uint32_t(f.scene.triangles.size());
-                p.rays = f.rays.data();
-                p.hits = k.hits.data();
-                p.status = k.status.data();
-                p.ray_count = uint32_t(f.rays.size());
-                p.work = &k.work;
                 if (test == TriangleTest::kWatertight) {
                     if (mode == HitMode::kClosest)
                         launch_bvh2<TriangleTest::kWatertight, HitMode::kClosest>(p, count);
