@@ -25,9 +25,24 @@ void accumulate(CpuTraceStats& s, TraceStatus status, const Hit& h, const TraceC
     s.triangles_tested += c.triangles;
 }
 
+/// The traversal loops are compiled twice on x86-64: for CPUs with FMA (Haswell, Zen and
+/// later: an fma is one instruction) and for the baseline (where __builtin_fmaf is a call
+/// into libm), chosen once at load time (GCC function multiversioning, an ifunc). The
+/// watertight test's shear (triangle_intersect.h shear_row) and the fast node test use
+/// fmas so that the GPU's fused multiply-adds give the same bits on the host; the two
+/// clones compute the same values (fmaf rounds once either way), the baseline one just
+/// slower. `flatten` inlines everything the loops call into each clone (without it GCC
+/// kept the BVH2 and two-level traversals and the triangle tests out of line, compiled
+/// for the baseline).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define CWBVH_FMA_CLONES __attribute__((flatten, target_clones("fma", "default")))
+#else
+#define CWBVH_FMA_CLONES
+#endif
+
 // One chunk of rays with the test and mode fixed at compile time.
 template <TriangleTest kTest, HitMode kMode, bool kBvh2, class NodeT>
-CpuTraceStats trace_range(const NodeT* nodes, uint32_t node_count, const TriangleRecord* tris,
+CWBVH_FMA_CLONES CpuTraceStats trace_range(const NodeT* nodes, uint32_t node_count, const TriangleRecord* tris,
                           uint32_t tri_count, const Ray* rays, Hit* hits, size_t begin, size_t end,
                           const CpuTraceOptions& o) {
     CpuTraceStats s;
@@ -103,7 +118,7 @@ CpuTraceStats trace_all(const NodeT* nodes, size_t node_count, const TriangleRec
 }
 
 template <TriangleTest kTest, HitMode kMode>
-CpuTraceStats two_level_range(const TwoLevelScene& scene, const Ray* rays, Hit* hits, uint32_t* instances,
+CWBVH_FMA_CLONES CpuTraceStats two_level_range(const TwoLevelScene& scene, const Ray* rays, Hit* hits, uint32_t* instances,
                               size_t begin, size_t end, const CpuTraceOptions& o) {
     CpuTraceStats s;
     for (size_t i = begin; i < end; ++i) {

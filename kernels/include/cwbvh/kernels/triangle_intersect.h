@@ -77,16 +77,19 @@ CWBVH_HD CWBVH_INLINE WatertightRay make_watertight_ray(const Ray& r) {
     return w;
 }
 
-/// (v - org) . m as the tests compute it: three products and two sums, each rounded,
-/// never fused. Of the three products one is exact (times 1) and one an exact 0 (times
-/// 0, for v - org finite), so the result is RN(A[kx] - RN(sx A[kz])), the sheared
-/// coordinate of the paper (and of this test before the rows), whichever axes kx, kz
-/// are; only the sign of an exact zero can depend on the order. Not fmas: on the host
-/// an fma without -mfma is a libm call, and eighteen of them per triangle made the CPU
-/// traversal 2-3x slower (bench/results/cpu/2026-11-26-shear-rows); the GPU pays 12
-/// instructions per triangle for the plain form.
+/// (v - org) . m as the tests compute it: the product of axis 2, then two fmas (6
+/// instructions per vertex on the GPU where three products and two sums took 10: 12 per
+/// triangle, issue 18). One of the three terms is an exact 0 (v - org finite: its fma
+/// adds 0 and changes at most the sign of an exact zero) and one an exact copy of
+/// v - org, so the result is RN(A[kx] + RN(-sx A[kz])) when kz comes before kx in the
+/// order 2, 1, 0, and RN(A[kx] - sx A[kz]) (one rounding) when it comes after: both
+/// depend only on the vertex and the ray, which is all watertightness needs, and
+/// bench/results/cpu/2026-11-26-shear-rows measured this form (0 errors). The host
+/// needs a real fma for the same bits: the CPU traversal is compiled twice, for FMA
+/// hardware and without (kernels/src/cpu_trace.cpp: target_clones), so that only CPUs
+/// without FMA pay libm's fmaf.
 CWBVH_HD CWBVH_INLINE float shear_row(const float a[3], const float m[3]) {
-    return add_rn(add_rn(mul_rn(a[2], m[2]), mul_rn(a[1], m[1])), mul_rn(a[0], m[0]));
+    return fma_rn(a[0], m[0], fma_rn(a[1], m[1], mul_rn(a[2], m[2])));
 }
 
 /// Hit distance: t = n.(v0 - o) / n.d, n = (v1 - v0) x (v2 - v0), in double from the
