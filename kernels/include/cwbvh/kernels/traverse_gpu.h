@@ -96,14 +96,12 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
     // iteration's end (one copy of the hit write in the code). One word, not an
     // `active` flag beside an `ending` code: under the 80-register cap nvcc kept the
     // flag as a byte in a shared register and copied both around the loop (issue 18).
-    // A ray that ends drops its triangle group, so a lane without a ray never wants
-    // triangles and the rounds need not test the state.
+    // A lane wants triangles only while it runs: the rounds test the state (one compare)
+    // rather than a ray that ends clearing its triangle group, whose merge nvcc paid for
+    // with four register copies in every round.
     constexpr uint32_t kRunning = 0xFFFFFFFFu, kIdle = 0xFFFFFFFEu;
     uint32_t state = kIdle;
-    auto finish = [&](TraceStatus status) {
-        state = uint32_t(status);
-        l.tri_group.hits = 0;
-    };
+    auto finish = [&](TraceStatus status) { state = uint32_t(status); };
 
     for (;;) {
         // ---- Refill idle lanes: one atomicAdd per warp, base broadcast by shuffle.
@@ -157,7 +155,7 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
             // Triangle rounds: one triangle per lane per round; minority lanes postpone.
             const int active_lanes = __popc(__ballot_sync(kFullMask, state == kRunning));
             for (;;) {
-                const bool wants = l.wants_triangles();
+                const bool wants = state == kRunning && l.wants_triangles();
                 const unsigned wanting = __ballot_sync(kFullMask, wants);
                 if (wanting == 0) break;
                 if (wants) {
