@@ -234,9 +234,12 @@ CWBVH_HD CWBVH_INLINE bool intersect_triangle_watertight(const WatertightRay& w,
     if (!watertight_edges(w, v0, v1, v2, e)) return false;
     // The float range stage runs on the GPU only. It rejects only what plane_t's double
     // range test below rejects (its bound; tests/traverse/triangle_range_test.cpp checks
-    // both on the same inputs), so skipping it changes no result. On the host its fmas
-    // are libm calls without -mfma and double is as fast as float: with the stage the
-    // CPU traversal was 1.7x slower (sponza_dabrovic nave, 256x256, 1 thread).
+    // both on the same inputs), so skipping it changes no result. On the host double is
+    // as fast as float, and the stage's error terms are subnormal constants (2^-146,
+    // 2^-149), which x86 handles in microcode: with the stage the CPU traversal was
+    // 1.7x slower with libm fmas (2026-11-26) and still 1.7-2.2x slower with the FMA
+    // clones of cpu_trace.cpp (2026-11-27, sponza_dabrovic nave and oa_oacmpctf3
+    // bridges, 256x256, 1 thread; bench/results/cpu/2026-11-27-fma-shear).
 #if defined(__CUDA_ARCH__)
     if (watertight_range_miss(w, v0, v1, v2, tmin, tmax)) return false;
 #endif
