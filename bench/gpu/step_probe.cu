@@ -20,7 +20,8 @@ template <TriangleTest kTest, bool kFast>
 __global__ void probe_cwbvh_node(const CwbvhNode* nodes, const Ray* rays, uint32_t* out, NodeScale scale) {
     CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x), scale);
     l.nray.zero_axes = kFast ? NodeRay::kFastBit : 0u;
-    visit_node(l, load_node_words(nodes + out[threadIdx.x]), scale.one_bits);
+    l.nray.frame = out[threadIdx.x + 64];  // as a kernel holds it: the set-up's check is not part of the step
+    visit_node(l, load_node_words(nodes + out[threadIdx.x]), scale.frame_word);
     out[threadIdx.x] = l.node_group.hits ^ l.tri_group.hits ^ l.node_group.base ^ l.tri_group.base;
 }
 
@@ -34,7 +35,8 @@ template <TriangleTest kTest>
 __global__ void probe_cwbvh_node_dispatch(const CwbvhNode* nodes, const Ray* rays, uint32_t* out, NodeScale scale) {
     CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x), scale);
     l.nray.zero_axes = out[threadIdx.x] & NodeRay::kFastBit;
-    visit_node(l, load_node_words(nodes + (out[threadIdx.x] & 0x7FFFFFFFu)), scale.one_bits);
+    l.nray.frame = out[threadIdx.x + 64];
+    visit_node(l, load_node_words(nodes + (out[threadIdx.x] & 0x7FFFFFFFu)), scale.frame_word);
     out[threadIdx.x] = l.node_group.hits ^ l.tri_group.hits ^ l.node_group.base ^ l.tri_group.base;
 }
 
@@ -82,9 +84,10 @@ __global__ void probe_triangle_setup(const Ray* rays, uint32_t* out) {
 template <TriangleTest kTest>
 __global__ void probe_ray_setup(const Ray* rays, uint32_t* out, NodeScale scale) {
     CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x), scale);
-    // one_bits: the kernel loads it once per launch, not per node step.
+    l.nray.frame = out[threadIdx.x + 64];  // as in the node probes (whose set-up this is)
+    // frame_word: the kernel loads it once per launch, not per node step.
     out[threadIdx.x] = __float_as_uint(l.nray.rcp[0] + l.nray.rcp[1] + l.nray.rcp[2] + l.nray.norcp[0] +
-                                       l.nray.norcp[1] + l.nray.norcp[2]) ^ l.nray.octinv ^ scale.one_bits;
+                                       l.nray.norcp[1] + l.nray.norcp[2]) ^ l.nray.octinv ^ l.nray.frame ^ scale.frame_word;
 }
 
 /// One BVH2 node step: 64-byte load, two robust slab tests.

@@ -149,7 +149,7 @@ private:
             if (step == NodeStep::kVisit) {
                 ++visiting;
                 s_.lane_fast_node_steps += lane.l.nray.uses_fast_test() ? 1u : 0u;
-                visit_node(lane.l, nodes_[index], scale_.one_bits);
+                visit_node(lane.l, nodes_[index], scale_.frame_word);
             } else if (step == NodeStep::kOverflow) {
                 finish(lane, TraceStatus::kStackOverflow);
             } else if (step == NodeStep::kBadIndex) {

@@ -138,7 +138,9 @@ TEST(WarpModel, StatisticsAreConsistent) {
     const WarpModelStats s = run(f, o, hits);
     // The fast node test (the kernel's): the same hits in the same order, so a superset
     // of the reference's node visits (its extra children are conservative false
-    // positives, which hold no hit in range), within 1 % on this scene.
+    // positives, which hold no hit in range). Its half arithmetic widens each box by a
+    // fraction of a plane step (node_intersect_fast.h): within 3 % on this scene (1.6 %
+    // when the half form came in, 2026-11-27; the float form before it was within 1 %).
     {
         WarpModelOptions of = o;
         of.fast_node_test = true;
@@ -146,7 +148,7 @@ TEST(WarpModel, StatisticsAreConsistent) {
         const WarpModelStats sf = run(f, of, fast_hits);
         EXPECT_EQ(sf.hits, s.hits);
         EXPECT_GE(sf.lane_node_steps, s.lane_node_steps);
-        EXPECT_LE(double(sf.lane_node_steps), 1.01 * double(s.lane_node_steps));
+        EXPECT_LE(double(sf.lane_node_steps), 1.03 * double(s.lane_node_steps));
         std::printf("fast node test: %llu node steps, reference masks %llu\n",
                     (unsigned long long)sf.lane_node_steps, (unsigned long long)s.lane_node_steps);
     }

@@ -171,7 +171,7 @@ void check_never_misses(Which which, uint64_t seed) {
             enable_fast_node_test(nr, sc, r.dir, tmin);
             if (!nr.uses_fast_test()) continue;
             ++fast_rays;
-            mask = intersect_node_fast(n, nr, r.tmax, sc.one_bits);
+            mask = intersect_node_fast(n, nr, r.tmax, sc.frame_word);
         } else {
             mask = intersect_node(n, nr, r.tmin, r.tmax);
         }
@@ -223,17 +223,19 @@ TEST(NodeIntersect, NodeScaleBoundsEveryNodeAndRefusesWhatTheFastTestCannotExpre
     for (int i = 0; i < 500; ++i) nodes.push_back(random_node(g, g.irange(-30, 30)));
     const NodeScale sc = node_scale(nodes.data(), nodes.size());
     ASSERT_EQ(sc.usable, 1u);
-    EXPECT_EQ(sc.one_bits, 0x3F800000u);
-    uint32_t emin = 255;
+    uint32_t emin = 255, emax = 0;
     for (const CwbvhNode& n : nodes)
         for (int a = 0; a < 3; ++a) {
             EXPECT_GE(double(sc.plane_max), std::fabs(double(n.p[a])) + 255.0 * double(exponent_scale(n.e[a])));
             EXPECT_GE(sc.scale_max, exponent_scale(n.e[a]));
             emin = std::min<uint32_t>(emin, n.e[a]);
+            emax = std::max<uint32_t>(emax, n.e[a]);
         }
-    EXPECT_EQ(sc.rcp_floor, std::ldexp(1.0f, -14 - int(emin)));
-    // Exponent 0 (planes all at p), exponents whose J = 2^(e-112) rcp leaves the
-    // integer exponent add, a NaN or huge origin, no nodes: no fast test.
+    EXPECT_EQ(sc.e_max, emax);
+    EXPECT_EQ(sc.e_floor, emax > 101 ? emax - 100 : 1u);
+    EXPECT_EQ(sc.frame_word, sc.e_floor << 8);    // low byte zero: the plane permutes' zero byte
+    // Exponent 0 (planes all at p), exponents beyond kFastMaxExponent, a NaN or huge
+    // origin, no nodes: no fast test.
     auto refused = [&](auto edit) {
         std::vector<CwbvhNode> bad = nodes;
         edit(bad[123]);
@@ -330,11 +332,11 @@ TEST(NodeIntersect, NodeWordsAreTheNodeAndGiveTheSameMasks) {
         const NodeScale sc = node_scale(&n, 1);
         enable_fast_node_test(nr, sc, r.dir, 0.0f);
         fast += int(nr.uses_fast_test());
-        ASSERT_EQ(intersect_node_dispatch(w, nr, r.tmin, r.tmax, sc.one_bits),
-                  intersect_node_dispatch(n, nr, r.tmin, r.tmax, sc.one_bits))
+        ASSERT_EQ(intersect_node_dispatch(w, nr, r.tmin, r.tmax, sc.frame_word),
+                  intersect_node_dispatch(n, nr, r.tmin, r.tmax, sc.frame_word))
             << "iter " << iter << " fast " << nr.uses_fast_test();
         nr.zero_axes = nr.zero_axis_bits();
-        ASSERT_EQ(intersect_node_dispatch(w, nr, r.tmin, r.tmax, sc.one_bits), intersect_node(n, nr, r.tmin, r.tmax));
+        ASSERT_EQ(intersect_node_dispatch(w, nr, r.tmin, r.tmax, sc.frame_word), intersect_node(n, nr, r.tmin, r.tmax));
     }
     EXPECT_GT(fast, 1000);  // the words path of the fast test ran
 }

@@ -105,12 +105,12 @@ CWBVH_HD CWBVH_INLINE NodeStep next_node(CwbvhLane<kTest>& l, Stack& stack, uint
 
 /// Node step, second half: tests the eight child boxes of the loaded node and makes
 /// its hit children the new node and triangle groups. Node: NodeWords (the kernel,
-/// load_node_words) or CwbvhNode (the host). one_bits: the scene's
-/// NodeScale::one_bits, the fast test's 1.0f (the kernel passes it from its launch
+/// load_node_words) or CwbvhNode (the host). frame_word: the scene's
+/// NodeScale::frame_word, the fast test's scene word (the kernel passes it from its launch
 /// parameters; see intersect_node_fast).
 template <TriangleTest kTest, class Node>
-CWBVH_HD CWBVH_INLINE void visit_node(CwbvhLane<kTest>& l, const Node& node, uint32_t one_bits) {
-    const uint32_t hitmask = intersect_node_dispatch(node, l.nray, l.tmin, l.tmax, one_bits);
+CWBVH_HD CWBVH_INLINE void visit_node(CwbvhLane<kTest>& l, const Node& node, uint32_t frame_word) {
+    const uint32_t hitmask = intersect_node_dispatch(node, l.nray, l.tmin, l.tmax, frame_word);
     l.node_group = StackEntry{node_child_base(node), (hitmask & 0xFF000000u) | node_imask(node)};
     l.tri_group = StackEntry{node_tri_base(node), hitmask & 0x00FFFFFFu};
 }

@@ -59,6 +59,9 @@ struct NodeRay {
     /// For intersect_node_fast (node_intersect_fast.h): -RN(o' * rcp) per axis
     /// (enable_fast_node_test; 0 from make_node_ray).
     float norcp[3];
+    /// For intersect_node_fast: the node frame's ray part, (140 - r) << 23 with
+    /// r = floor(log2 max|rcp|) (enable_fast_node_test; 0 from make_node_ray).
+    uint32_t frame;
 };
 
 CWBVH_HD CWBVH_INLINE NodeRay make_node_ray(const Ray& r) {
@@ -84,6 +87,7 @@ CWBVH_HD CWBVH_INLINE NodeRay make_node_ray(const Ray& r) {
         n.norcp[a] = 0.0f;  // enable_fast_node_test
     }
     n.octinv = 7u - octant;
+    n.frame = 0u;
     return n;
 }
 

@@ -1,52 +1,63 @@
-// The GPU's common-path node test: the eight quantized child boxes of a CWBVH node
-// in about 60% of the instructions of intersect_node_scalar, for rays and scenes that
-// meet the conditions of fast_node_test_applies (checked once per ray, at set-up;
-// every other ray takes intersect_node_scalar, node by node). Issue 18: on Hopper the
-// traversal is bound by issued instructions, not by memory.
+// The GPU's common-path node test: the eight quantized child boxes of a CWBVH node,
+// two slots per instruction in binary16 (half) arithmetic, for rays and scenes that meet
+// the conditions of fast_node_test_applies (checked once per ray, at set-up; every other
+// ray takes intersect_node_scalar, node by node). Issue 18: on Hopper the traversal is
+// bound by issued instructions, not by memory, and per slot the float form of this test
+// (until 2026-11-27) cost 20 SASS instructions; in pairs of halves it costs about 12.
 //
 // Contract: as intersect_node (node_intersect.h): a slot whose decoded box the exact
 // segment [tmin, tmax] touches has its bits set; extra bits are allowed. The host
-// builds the same function (intrinsics emulated bit for bit), so that
+// builds the same function (fp16.h emulates every half operation bit for bit), so that
 // tests/traverse/node_intersect_test.cpp checks the contract on random nodes and rays
 // and the CPU warp model runs what the kernel runs.
 //
-// What is cheaper than intersect_node_scalar, and why it stays conservative:
-//  1. Plane bytes become floats with one byte permute and no subtraction: the byte
-//     q goes into mantissa bits 8..15 of 1.0f, giving F = 1 + q 2^-15 exactly. The
-//     slab distance q idir + O is then F J + O' with J = 2^15 idir (exact: a power of
-//     two times RN(1/d), a normal float on this path) and O' = RN(O - J). The extra
-//     rounding in O' errs by at most u (|O| + |J|), which the bound below covers (it
-//     costs 1/32 of a quantization step of slack).
-//  2. Distances are measured from tmin: the set-up moves the origin to
-//     o' = RN(o + tmin d) and keeps norcp = -RN(o' rcp), so O = RN(p rcp + norcp) is
-//     one fma per axis and the interval starts at t' = 0. The rounding of o' moves
-//     every distance by at most u |o' rcp| = u |norcp|, which S below contains.
-//  3. The per-slot ends are combined by three-input integer max/min (sm_90 DPX: one
-//     instruction each) on the float bit patterns. Near: max(0, tn_x, tn_y, tn_z) in
-//     one __vimax3_s32_relu: with 0 in the set the result is >= +0, and non-negative
-//     floats order as their bits do, while every negative float is a negative integer
-//     and can never be the maximum; so it equals the float maximum. Far: the integer
-//     minimum equals the float minimum when that is >= +0; when some far distance is
-//     negative, the integer minimum is a negative float too (possibly nearer to zero
-//     than the float minimum) and the float comparison with the near end (>= +0)
-//     rejects it, except -0.0 against a near end of exactly +0, which is accepted
-//     (a superset: conservative). No NaN or infinity can occur on this path.
-//  4. No per-node "bounded" selects and no FLT_MIN slack: the set-up proved that no
-//     slab term of any node of the scene reaches 2^125 for this ray, and that J is a
-//     normal float for every node (node_scale's bounds), so S >= |J| >= 2^-126: the
-//     margin E - 5u S >= 11u S >= 11 * 2^-150 covers the few roundings that may land in
-//     the subnormal range (absolute error <= 2^-150 each, at most four on a path).
+// The arithmetic, per node (u = 2^-24, u_h = 2^-11: float and half unit roundoffs):
+//  1. A node frame. Every distance t of the node is handled as tau = f t - C: f = 2^s a
+//     power of two chosen per node and ray (from the node's largest exponent e_max and
+//     r = floor(log2 max|rcp|), NodeRay::frame), C >= 0 a float. With
+//     s = 116 - e_max - r, the plane step of axis a in tau, Q_a = f 2^(e_a-127) |rcp_a|,
+//     is J_a 2^-24 with J_a = 2^(e_a - e_max + 13 - r) |rcp_a| < 2^14 (a power of two
+//     times rcp: exact unless below 2^-126), so the node's grid spans at most
+//     255 * 2^-24 * 2^14 < 0.25 in tau on every axis: small values, where halves are
+//     precise, at every depth.
+//  2. Plane bytes become halves with one byte permute per two slots and no arithmetic:
+//     the byte q goes into the low byte of a half whose high byte is zero, a subnormal
+//     half of value q 2^-24, exactly. Plane q of axis a is then at tau = q 2^-24 J_a + D_a,
+//     one half fma (HFMA2, two slots), with D_a = RN(f O_a - C) the distance of plane
+//     q = 0 (O_a = RN(p_a rcp_a + norcp_a), as the reference test's slab terms, from the
+//     moved origin o' = RN(o + tmin d)).
+//  3. C is a lower bound of where the segment can enter the node's grid: the largest of
+//     0 and, per axis, RD(f O_a - G_a), G_a >= the float error of f O_a plus the grid's
+//     extent (either side, so no octant select): t_a <= the exact near grid plane. Every
+//     point of the segment inside a child box has tau >= 0, so the near ends are clamped
+//     at 0 (the relu of the DPX maximum) and nothing is lost; and for a child the segment
+//     touches, every per-axis end lies within about one grid extent of [0, 0.25] plus the
+//     float error: halves there carry 11 bits.
+//  4. Near ends are widened down, far ends up, by E_a per axis (below), folded into D_a:
+//     on_a = D_a - E_a and of_a = D_a + E_a, rounded to half with satfinite (a finite
+//     value never becomes an infinity). Then near = max(0, tn_x, tn_y, tn_z) and far =
+//     min(tf_x, tf_y, tf_z) per pair as DPX integer max/min on the bit patterns (as the
+//     float form argued: with 0 in the maximum the integer maximum is the half maximum or
+//     smaller; the integer minimum is the half minimum or a negative value, which the
+//     near end >= +0 rejects exactly when the half minimum would), far is lowered to
+//     tmax_h = RU_h(RU(f tmax - C)), and the slot is hit when near <= far (closed boxes).
 //
-// Error bound (u = 2^-24; node_intersect.h's argument with J, O' and o'). Let T' be
-// the exact distance, measured from tmin, to the decoded plane P = RN(p + 2^e q).
-// Every rounding above is one relative u; summing them:
-//   |t' - T'| <= u (5|O| + 3 * 255|idir| + 3|o' rcp| + |J|) <= 5u * S,
-//   S = (1 + 2^-5)|J| + |O| + |norcp|   (3 * 255 / 2^15 < 2^-5).
-// Near/far distances are widened by E = 2^-20 S (16u S: margin for the roundings of
-// S and of O' -/+ E), near down, far up; the hit test is near <= far (closed boxes
-// stay hittable). The near end is also compared with tmax itself, not with the exact
-// end of the moved interval, tmax - tmin <= tmax (tmin >= 0): a superset, equal for
-// the usual tmin = 0, and no rounding to direct.
+// Error bound. Against the exact distance tau* of plane q of axis a (the exact t of the
+// decoded plane P = RN(p + 2^e q), measured from tmin, times f, minus C):
+//   float part (rcp, P, o', norcp, O rounded; f exact): <= 6u f S + 2u 2^-16 J,
+//     S = |O| + |norcp|;
+//   D rounded: u|D|; on/of rounded to float and to half: (u + u_h)(|D| + E);
+//   J rounded to half, times q 2^-24 <= 2^-16: <= 2^-27 J (+ 2^-41 where subnormal);
+//   the HFMA2 result, |.| <= |on| + 2^-16 J: u_h(|D| + E + 2^-16 J), + 2^-25 if subnormal;
+//   every other subnormal half rounding: + 2^-25 each (at most three).
+// Together <= 2^-21 f S + 1.001 * 2^-10 (|D| + E) + 1.1 * 2^-27 J + 2^-23.4, and
+//   E = RN(1.25 * 2^-10 |D| + RN(2^-25 J + RN(2^-19 f S + 2^-22)))
+// exceeds it with room for its own three roundings (each term of E is at least 1.2
+// times its counterpart after E - 1.001 * 2^-10 E). Overflow: f S, f O and f tmax stay
+// below 2^125 for every node (set-up); where a value of a child the segment misses
+// leaves the half range, satfinite keeps it at +-65504, and the compares stay on the
+// conservative side (a clamped near end is lower than the exact one, and any end near
+// 65504 is rounded to 65504 itself: a half's spacing there is 32, a plane step < 2^-10).
 #pragma once
 
 #include <cstdint>
@@ -55,6 +66,7 @@
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/hostdevice.h"
 #include "cwbvh/kernels/fp.h"
+#include "cwbvh/kernels/fp16.h"
 #include "cwbvh/kernels/node_intersect.h"
 
 namespace cwbvh {
@@ -63,22 +75,27 @@ namespace cwbvh {
 struct NodeScale {
     float plane_max;  ///< >= max over nodes and axes of |p| + 255 * 2^(e-127) (rounded up)
     float scale_max;  ///< >= max over nodes and axes of 2^(e-127)
-    float rcp_floor;  ///< 2^(-14 - min e): |rcp| >= this keeps every J = 2^(e-112) rcp a normal float
+    uint32_t e_max;    ///< largest exponent byte over nodes and axes
+    /// max(1, e_max - 100): the node frame of a node whose exponents are all below this
+    /// (a degenerate node, 2^100 times smaller than the scene) is taken at e_floor, so
+    /// that f = 2^(116 - e_max - r) is bounded for every node (set-up check).
+    uint32_t e_floor;
     uint32_t usable;  ///< 1 when every exponent is in 1..kFastMaxExponent and both bounds are finite;
                       ///< 0 (NodeScale{}): no fast test (the CPU reference, no scene constants)
-    /// 0x3F800000, the bits of 1.0f (node_scale sets it). The kernel passes it from its
-    /// launch parameters to intersect_node_fast: a value the compiler cannot see keeps the
-    /// byte permutes' selectors immediate (see plane_unit).
-    uint32_t one_bits;
+    /// e_floor << 8 (node_scale sets it). Its low byte is zero: the plane bytes' permutes
+    /// take their zero byte from it. The kernel passes it from its launch parameters to
+    /// intersect_node_fast: a value the compiler cannot see keeps the permutes' selectors
+    /// immediate (with a literal zero, nvcc rematerializes selectors in registers before
+    /// nearly every permute: +37 SASS instructions per node step in the float form).
+    uint32_t frame_word;
 };
 
-/// Largest biased exponent the fast test accepts: 2^15 * 2^(e-127) must stay a
-/// normal float, and the exponent of J is formed as e + 15 in an integer add.
-inline constexpr uint32_t kFastMaxExponent = 239;
-/// Slab terms stay below this for every node (set-up check); 2^125 leaves a factor 2
-/// for the widening and the final sums before any overflow.
+/// Largest biased exponent the fast test accepts (2^103: far beyond any scene):
+/// 2^24 * 2^(e-127) must be a float, formed as (e + 24) << 23.
+inline constexpr uint32_t kFastMaxExponent = 230;
+/// Slab terms stay below this for every node, also times the node frame's f (set-up
+/// check); 2^125 leaves a factor 2 for the widening and the final sums before any overflow.
 inline constexpr float kFastSlabLimit = 4.2535295865117308e+37f;  // 2^125
-
 
 // --- intrinsics, emulated on the host with the device's exact semantics ---------
 
@@ -94,7 +111,7 @@ CWBVH_HD CWBVH_INLINE uint32_t byte_perm(uint32_t x, uint32_t y, uint32_t s) {
     return r;
 #endif
 }
-/// Signed three-input maximum / minimum (sm_90 DPX: one instruction).
+/// Signed three-input maximum (sm_90 DPX: one instruction) and max(0, a, b, c).
 CWBVH_HD CWBVH_INLINE int32_t imax3(int32_t a, int32_t b, int32_t c) {
 #if defined(__CUDA_ARCH__)
     return __vimax3_s32(a, b, c);
@@ -103,21 +120,12 @@ CWBVH_HD CWBVH_INLINE int32_t imax3(int32_t a, int32_t b, int32_t c) {
     return m > c ? m : c;
 #endif
 }
-/// max(0, a, b, c) (sm_90 DPX: one instruction).
 CWBVH_HD CWBVH_INLINE int32_t imax3_relu(int32_t a, int32_t b, int32_t c) {
 #if defined(__CUDA_ARCH__)
     return __vimax3_s32_relu(a, b, c);
 #else
     const int32_t m = imax3(a, b, c);
     return m > 0 ? m : 0;
-#endif
-}
-CWBVH_HD CWBVH_INLINE int32_t imin3(int32_t a, int32_t b, int32_t c) {
-#if defined(__CUDA_ARCH__)
-    return __vimin3_s32(a, b, c);
-#else
-    const int32_t m = a < b ? a : b;
-    return m < c ? m : c;
 #endif
 }
 /// b << (c & 31) as the funnel shift __funnelshift_l(0, b, c).
@@ -130,51 +138,57 @@ CWBVH_HD CWBVH_INLINE uint32_t shl_wrap(uint32_t b, uint32_t c) {
 }
 CWBVH_HD CWBVH_INLINE int32_t float_as_int(float f) { return int32_t(float_to_bits(f)); }
 
-/// F = 1 + q 2^-15 for byte s (0..3) of w: bytes (0x00, q, 0x80, 0x3F). `one` is
-/// the bit pattern of 1.0f from an operand the compiler cannot fold (the kernel's launch
-/// parameter NodeScale::one_bits, in the constant bank): with the constant in the
-/// instruction, the byte permute would need its selector in a register, and nvcc
-/// rematerializes the four selectors before nearly every permute (+37 SASS
-/// instructions per node step).
-CWBVH_HD CWBVH_INLINE float plane_unit(uint32_t w, int s, uint32_t one) {
-    return bits_to_float(byte_perm(w, one, 0x7604u | (uint32_t(s & 3) << 4)));
-}
+/// floor(log2 x) for a normal float x > 0.
+CWBVH_HD CWBVH_INLINE int float_exponent(float x) { return int(float_to_bits(x) >> 23) - 127; }
 
 /// Whether the fast test is exact enough for this ray in this scene: tmin finite and
 /// >= +0 (bit pattern: -0 does not pass, callers make it +0 first), every rcp finite
-/// and |rcp| >= rcp_floor (every J normal), and
-/// (2^16 scale_max + plane_max + 2|o'|max) |rcp|max < 2^125, which bounds every slab
-/// term S of every node: S <= (1.04 * 2^15 * 2^(e-127) + |p| + 2|o'|)(1 + 3u) |rcp|,
-/// and |p| + 255 * 2^(e-127) <= plane_max covers |p|. o': the moved origin.
+/// (make_node_ray makes |rcp| >= FLT_MIN or infinite), the node frame's factor normal
+/// for every node (r = floor(log2 max|rcp|); f = 2^(116 - e_max - r) and f 2^-19:
+/// r <= 223 - e_max, r >= -11 - e_floor over the scene),
+/// and every slab term bounded, also in the largest node frame:
+///   (2^16 scale_max + plane_max + 2|o'|max) |rcp|max 2^(116 - e_floor - r) < 2^125
+/// (S <= (1.04 * 2^15 * 2^(e-127) + |p| + 2|o'|)(1 + 3u)|rcp| as in the float form). o':
+/// the moved origin.
+/// r_out (optional): r, for the node frame (enable_fast_node_test).
 CWBVH_HD CWBVH_INLINE bool fast_node_test_applies(const NodeScale& sc, const float org_moved[3], const float rcp[3],
-                                                  float tmin) {
+                                                  float tmin, int* r_out = nullptr) {
     if (sc.usable == 0 || float_as_int(tmin) < 0 || !(tmin < kInfinity)) return false;
     float rmax = 0.0f, omax = 0.0f;
     for (int a = 0; a < 3; ++a) {
         const float ar = abs_fm(rcp[a]);
-        if (!(ar >= sc.rcp_floor && ar < kInfinity)) return false;  // also NaN
+        if (!(ar >= kFloatMin && ar < kInfinity)) return false;  // also NaN
         rmax = ar > rmax ? ar : rmax;
         const float ao = abs_fm(org_moved[a]);
         if (!(ao < kInfinity)) return false;
         omax = ao > omax ? ao : omax;
     }
+    const int r = float_exponent(rmax);
+    if (r_out) *r_out = r;
+    const int em = int(sc.e_max), en = int(sc.e_floor);
+    if (r > 223 - em || r < -11 - en) return false;
     // Each sum and product below rounds to nearest (relative error <= u); the factor
     // 2 between 2^125 and the 2^126 the analysis needs absorbs them.
     const float reach = 65536.0f * sc.scale_max + sc.plane_max + 2.0f * omax;
-    return reach * rmax < kFastSlabLimit;
+    const float f_max = bits_to_float(uint32_t(243 - en - r) << 23);  // 2^(116 - e_floor - r), normal by the above
+    const float slab = reach * rmax;
+    return slab < kFastSlabLimit && slab * f_max < kFastSlabLimit;
 }
 
 /// Lets `r` use intersect_node_fast when fast_node_test_applies: moves the origin to
 /// o' = RN(o + tmin d) for norcp (dir: the ray's direction; tmin: the lane's, already
-/// +0 for a -0 tmin). The scalar test keeps using org.
+/// +0 for a -0 tmin) and sets the node frame's ray part, frame = (243 - r) << 23. The
+/// scalar test keeps using org.
 CWBVH_HD CWBVH_INLINE void enable_fast_node_test(NodeRay& r, const NodeScale& sc, const float dir[3], float tmin) {
     float moved[3];
     for (int a = 0; a < 3; ++a) {
         moved[a] = fma_rn(tmin, dir[a], r.org[a]);
         r.norcp[a] = -mul_rn(moved[a], r.rcp[a]);
     }
-    const bool fast = r.zero_axis_bits() == 0 && fast_node_test_applies(sc, moved, r.rcp, tmin);
+    int rexp = 0;
+    const bool fast = r.zero_axis_bits() == 0 && fast_node_test_applies(sc, moved, r.rcp, tmin, &rexp);
     r.zero_axes = r.zero_axis_bits() | (fast ? NodeRay::kFastBit : 0u);
+    r.frame = fast ? uint32_t(243 - rexp) << 23 : 0u;
 }
 
 /// A CwbvhNode as the twenty 32-bit words a GPU loads (five 16-byte loads): the fast
@@ -230,30 +244,54 @@ CWBVH_HD CWBVH_INLINE uint32_t node_tri_base(const NodeWords& n) { return n.w[5]
 CWBVH_HD CWBVH_INLINE uint32_t node_imask(const NodeWords& n) { return n.w[3] >> 24; }
 
 /// The fast node test (see the file comment). octinv and the plane rows as in
-/// intersect_node_scalar; tmin is in the moved origin (enable_fast_node_test). one: the
-/// scene's NodeScale::one_bits, the bits of 1.0f from somewhere the compiler cannot see
-/// through (see plane_unit): the kernel passes its launch parameter, in the constant bank,
-/// which takes no register.
-CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const NodeWords& n, const NodeRay& r, float tmax, uint32_t one) {
+/// intersect_node_scalar; tmin is in the moved origin and the node frame's ray part in
+/// r.frame (enable_fast_node_test). frame_word: the scene's NodeScale::frame_word, from
+/// somewhere the compiler cannot see through: the kernel passes its launch parameter, in
+/// the constant bank, which takes no register.
+CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const NodeWords& n, const NodeRay& r, float tmax, uint32_t frame_word) {
     const uint32_t* lo_w = n.w + 8;
     const uint32_t* hi_w = n.w + 14;
     const uint32_t* meta_w = n.w + 6;
     const uint32_t e_w = n.w[3];
-    float J[3], on[3], of[3];
+    // The node frame: f = 2^(116 - e_max - r), from r.frame = (243 - r) << 23, with the
+    // node's largest exponent taken at least e_floor (NodeScale).
+    const uint32_t e_a[3] = {byte_perm(e_w, 0u, 0x4440u), byte_perm(e_w, 0u, 0x4441u), byte_perm(e_w, 0u, 0x4442u)};
+    const uint32_t e_node = umax3(e_a[0], e_a[1], e_a[2]);
+    const uint32_t e_max = e_node > (frame_word >> 8) ? e_node : (frame_word >> 8);
+    const uint32_t f_bits = r.frame - (e_max << 23);
+    const float f = bits_to_float(f_bits);
+    const float f20 = bits_to_float(f_bits - (20u << 23));  // 2^-20 f
+    float J[3], O[3], Sf[3], t[3];
+    CWBVH_UNROLL
+    for (int a = 0; a < 3; ++a) {
+        // J = 2^24 2^(e_a - 127) f rcp = 2^(e_a - e_max + 13 - r) rcp: exact, or below
+        // 2^-126 (an axis far flatter than the node's widest: then within 2^-150 of it,
+        // or 0, which the floor of E covers).
+        const float scale24 = bits_to_float((e_a[a] + 24u) << 23);  // 2^(e_a - 103)
+        J[a] = mul_rn(mul_rn(scale24, f), r.rcp[a]);
+        O[a] = fma_rn(bits_to_float(n.w[a]), r.rcp[a], r.norcp[a]);  // RN(p rcp - RN(o' rcp))
+        // The float part's error bound in the node frame, with the subnormal-half floor.
+        Sf[a] = fma_rn(add_rn(abs_fm(O[a]), abs_fm(r.norcp[a])), f20, 1.1920928955078125e-07f);  // + 2^-23
+        const float G = fma_rn(abs_fm(J[a]), 1.52587890625e-05f, Sf[a]);  // + the grid's extent, 2^-16 J
+        t[a] = fma_rd(O[a], f, -G);
+    }
+    const float C = bits_to_float(uint32_t(imax3_relu(float_as_int(t[0]), float_as_int(t[1]), float_as_int(t[2]))));
+    uint32_t on[3], of[3];
+    CWBVH_UNROLL
+    for (int a = 0; a < 3; ++a) {
+        const float D = fma_rn(O[a], f, -C);
+        const float Z = fma_rn(abs_fm(J[a]), 1.4901161193847656e-08f, Sf[a]);  // 2^-26 J
+        const float E = fma_rn(abs_fm(D), 5.18798828125e-04f, Z);              // 1.0625 * 2^-11 |D|
+        on[a] = h2_broadcast_rd(sub_rd(D, E));  // near planes' offset, rounded down twice
+        of[a] = h2_broadcast_ru(add_ru(D, E));  // far planes', up
+    }
+    const uint32_t jxy = h2_pack(J[0], J[1]);
+    const uint32_t jz = h2_pack(J[2], J[2]);
+    const uint32_t j2[3] = {h2_lo(jxy), h2_hi(jxy), jz};
+    const uint32_t tmax_h = h2_broadcast_ru(fma_ru(tmax, f, -C));
     uint32_t near_w[6], far_w[6];
     CWBVH_UNROLL
     for (int a = 0; a < 3; ++a) {
-        // 2^15 * 2^(e-127) as bits: (e + 15) << 23 (e <= kFastMaxExponent: no carry out).
-        // Not masked to e's byte: of the word's higher bits only the next one stays in the
-        // shifted word, as the sign bit, and J takes the magnitude (a free |.| on the
-        // multiply): three masks less per node (issue 18).
-        const float scale = bits_to_float((e_w >> (8 * a)) * 0x00800000u + (15u << 23));
-        J[a] = mul_rn(abs_fm(scale), r.rcp[a]);                          // exact
-        const float O = fma_rn(bits_to_float(n.w[a]), r.rcp[a], r.norcp[a]);  // RN(p rcp - RN(o' rcp))
-        const float Op = sub_rn(O, J[a]);                                 // RN(O - J)
-        const float S = fma_rn(1.03125f, abs_fm(J[a]), add_rn(abs_fm(O), abs_fm(r.norcp[a])));
-        on[a] = fma_rn(S, -9.5367431640625e-07f, Op);  // O' - 2^-20 S
-        of[a] = fma_rn(S, 9.5367431640625e-07f, Op);   // O' + 2^-20 S
         const bool neg = (r.octinv & (4u >> a)) == 0;
         CWBVH_UNROLL
         for (int h = 0; h < 2; ++h) {
@@ -274,28 +312,37 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const NodeWords& n, const Nod
     }
     uint32_t hitmask = 0;
     CWBVH_UNROLL
-    for (int s = 0; s < kWidth; ++s) {
-        const int h = s >> 2;
-        const float tnx = fma_rn(plane_unit(near_w[0 + h], s, one), J[0], on[0]);
-        const float tny = fma_rn(plane_unit(near_w[2 + h], s, one), J[1], on[1]);
-        const float tnz = fma_rn(plane_unit(near_w[4 + h], s, one), J[2], on[2]);
-        const float tfx = fma_rn(plane_unit(far_w[0 + h], s, one), J[0], of[0]);
-        const float tfy = fma_rn(plane_unit(far_w[2 + h], s, one), J[1], of[1]);
-        const float tfz = fma_rn(plane_unit(far_w[4 + h], s, one), J[2], of[2]);
-        const float tnear = bits_to_float(uint32_t(imax3_relu(float_as_int(tnx), float_as_int(tny), float_as_int(tnz))));
-        const float tfar = bits_to_float(uint32_t(imin3(float_as_int(tfx), float_as_int(tfy), float_as_int(tfz))));
-        if (tnear <= tfar && tnear <= tmax) {
-            // Empty slots have meta 0: no bits.
-            const uint32_t bits = byte_perm(bits_w[h], 0u, 0x4440u | uint32_t(s & 3));
-            hitmask |= shl_wrap(bits, index_w[h] >> (8 * (s & 3)));
+    for (int pr = 0; pr < kWidth / 2; ++pr) {
+        const int h = pr >> 1;
+        // Slots 2pr and 2pr + 1: plane bytes b and b + 1 of the word, each under a zero
+        // byte (frame_word's low byte): the halves q 2^-24.
+        const uint32_t sel = (pr & 1) ? 0x4342u : 0x4140u;
+        uint32_t tn[3], tf[3];
+        CWBVH_UNROLL
+        for (int a = 0; a < 3; ++a) {
+            tn[a] = h2_fma(byte_perm(near_w[2 * a + h], frame_word, sel), j2[a], on[a]);
+            tf[a] = h2_fma(byte_perm(far_w[2 * a + h], frame_word, sel), j2[a], of[a]);
+        }
+        const uint32_t tnear = vimax3_s16x2_relu(tn[0], tn[1], tn[2]);
+        const uint32_t tfar = h2_min(vimin3_s16x2(tf[0], tf[1], tf[2]), tmax_h);
+        bool hit[2];
+        h2_le(tnear, tfar, hit[0], hit[1]);
+        CWBVH_UNROLL
+        for (int k = 0; k < 2; ++k) {
+            const int s = 2 * pr + k;
+            if (hit[k]) {
+                // Empty slots have meta 0: no bits.
+                const uint32_t bits = byte_perm(bits_w[h], 0u, 0x4440u | uint32_t(s & 3));
+                hitmask |= shl_wrap(bits, index_w[h] >> (8 * (s & 3)));
+            }
         }
     }
     return hitmask;
 }
 
 /// The fast test on a node in its struct form (the host: tests, the CPU traversal).
-CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const NodeRay& r, float tmax, uint32_t one) {
-    return intersect_node_fast(node_words(n), r, tmax, one);
+CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const NodeRay& r, float tmax, uint32_t frame_word) {
+    return intersect_node_fast(node_words(n), r, tmax, frame_word);
 }
 
 /// The node test a traversal runs on `r`: intersect_node_fast where the ray's set-up
@@ -305,32 +352,33 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const Nod
 /// by bench/gpu/step_sizes.sh sm_80, 80 registers and no spills. On sm_75 the kernels would
 /// spill: reference arithmetic. On the host the flag selects too (the warp model and the
 /// tests run what the kernel runs).
-/// one: NodeScale::one_bits (see plane_unit). The kernels pass NodeWords (see there),
+/// frame_word: NodeScale::frame_word (see there). The kernels pass NodeWords (see there),
 /// the host CPU traversal the node in place.
 CWBVH_HD CWBVH_INLINE uint32_t intersect_node_dispatch(const NodeWords& n, const NodeRay& r, float tmin, float tmax,
-                                                       uint32_t one) {
+                                                       uint32_t frame_word) {
 #if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 800
-    (void)one;
+    (void)frame_word;
     return intersect_node(node_from_words(n), r, tmin, tmax);
 #else
-    if (r.uses_fast_test()) return intersect_node_fast(n, r, tmax, one);
+    if (r.uses_fast_test()) return intersect_node_fast(n, r, tmax, frame_word);
     return intersect_node(node_from_words(n), r, tmin, tmax);
 #endif
 }
 CWBVH_HD CWBVH_INLINE uint32_t intersect_node_dispatch(const CwbvhNode& n, const NodeRay& r, float tmin, float tmax,
-                                                       uint32_t one) {
+                                                       uint32_t frame_word) {
 #if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 800
-    (void)one;
+    (void)frame_word;
     return intersect_node(n, r, tmin, tmax);
 #else
-    return r.uses_fast_test() ? intersect_node_fast(n, r, tmax, one) : intersect_node(n, r, tmin, tmax);
+    return r.uses_fast_test() ? intersect_node_fast(n, r, tmax, frame_word) : intersect_node(n, r, tmin, tmax);
 #endif
 }
 
+
 #if !defined(__CUDA_ARCH__)
 /// The scene constants for `count` nodes (host, once per upload: O(nodes)). Exponents
-/// outside 1..kFastMaxExponent (0 decodes every plane to p, which 2^15 * 2^(e-127)
-/// cannot express) make the scene use intersect_node_scalar throughout.
+/// outside 1..kFastMaxExponent (0 decodes every plane to p, whose planes the node frame
+/// cannot step) make the scene use intersect_node_scalar throughout.
 inline NodeScale node_scale(const CwbvhNode* nodes, uint64_t count) {
     double plane = 0.0;
     bool finite = true;
@@ -346,27 +394,30 @@ inline NodeScale node_scale(const CwbvhNode* nodes, uint64_t count) {
             plane = reach > plane ? reach : plane;
         }
     }
-    NodeScale sc{0.0f, 0.0f, 0.0f, 0u, 0x3F800000u};
+    NodeScale sc{0.0f, 0.0f, 0u, 0u, 0u, 0u};
     if (count == 0 || !finite || emin < 1 || emax > kFastMaxExponent) return sc;
     // Round up to float: the set-up test must not underestimate.
     float pf = float(plane);
     if (double(pf) < plane) pf = bits_to_float(float_to_bits(pf) + 1u);
     sc.plane_max = pf;
     sc.scale_max = exponent_scale(uint8_t(emax));
-    // 2^(-14 - emin); FLT_MIN (a stronger condition) where that would be subnormal.
-    sc.rcp_floor = emin <= 112 ? exponent_scale(uint8_t(127 - 14 - emin)) : kFloatMin;
+    sc.e_max = emax;
+    sc.e_floor = emax > 101 ? emax - 100 : 1u;
+    sc.frame_word = sc.e_floor << 8;
     sc.usable = 1u;
     return sc;
 }
 
 /// Constants that hold for the nodes of both a and b (a two-level scene: NODE and
-/// TLAS): the larger bounds and rcp floor; usable only when both are.
+/// TLAS): the larger bounds, the wider exponent range; usable only when both are.
 inline NodeScale merge_node_scale(const NodeScale& a, const NodeScale& b) {
-    if (a.usable == 0 || b.usable == 0) return NodeScale{0.0f, 0.0f, 0.0f, 0u, 0x3F800000u};
+    if (a.usable == 0 || b.usable == 0) return NodeScale{};
     NodeScale m = a;
     m.plane_max = a.plane_max > b.plane_max ? a.plane_max : b.plane_max;
     m.scale_max = a.scale_max > b.scale_max ? a.scale_max : b.scale_max;
-    m.rcp_floor = a.rcp_floor > b.rcp_floor ? a.rcp_floor : b.rcp_floor;
+    m.e_max = a.e_max > b.e_max ? a.e_max : b.e_max;
+    m.e_floor = m.e_max > 101 ? m.e_max - 100 : 1u;
+    m.frame_word = m.e_floor << 8;
     return m;
 }
 #endif

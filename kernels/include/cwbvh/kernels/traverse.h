@@ -94,12 +94,12 @@ struct NoPostpone {
 /// (popped) triangle group and becomes the triangle group. `nodes` is the array
 /// the group's base indexes (NODE, or TLAS at the top level). kOk, or
 /// kStackOverflow / kBadIndex. The node test: intersect_node_dispatch (the reference
-/// arithmetic unless the ray's set-up enabled the fast test; one_bits: the scene's
-/// NodeScale::one_bits, used only then).
+/// arithmetic unless the ray's set-up enabled the fast test; frame_word: the scene's
+/// NodeScale::frame_word, used only then).
 template <class Stack>
 CWBVH_HD CWBVH_STEP_INLINE TraceStatus cwbvh_node_step(StackEntry& node_group, StackEntry& tri_group, const NodeRay& nray,
                                                   float tmin, float tmax, const CwbvhNode* nodes, uint32_t node_count,
-                                                  Stack& stack, uint32_t& n_nodes, uint32_t one_bits = 0x3F800000u) {
+                                                  Stack& stack, uint32_t& n_nodes, uint32_t frame_word = 0u) {
     if (node_group.hits <= 0x00FFFFFFu) {
         tri_group = node_group;
         node_group = StackEntry{0u, 0u};
@@ -119,7 +119,7 @@ CWBVH_HD CWBVH_STEP_INLINE TraceStatus cwbvh_node_step(StackEntry& node_group, S
     const CwbvhNode& node = nodes[index];
 #endif
     ++n_nodes;
-    const uint32_t hitmask = intersect_node_dispatch(node, nray, tmin, tmax, one_bits);
+    const uint32_t hitmask = intersect_node_dispatch(node, nray, tmin, tmax, frame_word);
     node_group = StackEntry{node_child_base(node), (hitmask & 0xFF000000u) | node_imask(node)};
     tri_group = StackEntry{node_tri_base(node), hitmask & 0x00FFFFFFu};
     return TraceStatus::kOk;

@@ -147,7 +147,7 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                         finish(TraceStatus::kBadIndex);
                     } else {
                         if (kCount) ++s_counts[0][threadIdx.x];
-                        visit_node(l, load_node_words(p.nodes + index), p.node_scale.one_bits);
+                        visit_node(l, load_node_words(p.nodes + index), p.node_scale.frame_word);
                     }
                 }  // else: no node work, only the triangle group that pop_if_idle filled
             }

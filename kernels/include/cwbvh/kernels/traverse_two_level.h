@@ -107,7 +107,7 @@ CWBVH_HD CWBVH_INLINE TraceStatus traverse_two_level(const TwoLevelScene& scene,
     StackEntry tri_group{0u, 0u};
     for (;;) {
         status = cwbvh_node_step(node_group, tri_group, nray, tmin, tmax, nodes, node_count, stack, n_nodes,
-                                 scene.node_scale.one_bits);
+                                 scene.node_scale.frame_word);
         if (status != TraceStatus::kOk) break;
 
         bool done = false;
