@@ -33,31 +33,36 @@
 //     at 0 (the relu of the DPX maximum) and nothing is lost; and for a child the segment
 //     touches, every per-axis end lies within about one grid extent of [0, 0.25] plus the
 //     float error: halves there carry 11 bits.
-//  4. Near ends are widened down, far ends up, by E_a per axis (below), folded into D_a:
-//     on_a = D_a - E_a and of_a = D_a + E_a, rounded to half with satfinite (a finite
-//     value never becomes an infinity). Then near = max(0, tn_x, tn_y, tn_z) and far =
+//  4. Near ends are widened down, far ends up, by E_a per axis (below), folded into D_a
+//     and rounded outward twice: on_a = RD_h(RD(D_a - E_a)), of_a = RU_h(RU(D_a + E_a)),
+//     so these roundings need no margin. Then near = max(0, tn_x, tn_y, tn_z) and far =
 //     min(tf_x, tf_y, tf_z) per pair as DPX integer max/min on the bit patterns (as the
 //     float form argued: with 0 in the maximum the integer maximum is the half maximum or
 //     smaller; the integer minimum is the half minimum or a negative value, which the
-//     near end >= +0 rejects exactly when the half minimum would), far is lowered to
-//     tmax_h = RU_h(RU(f tmax - C)), and the slot is hit when near <= far (closed boxes).
+//     near end >= +0 rejects exactly when the half minimum would, but for -0 against
+//     +0: a touching extra), far is lowered to tmax_h = RU_h(RU(f tmax - C)), and the
+//     slot is hit when near <= far (closed boxes).
 //
 // Error bound. Against the exact distance tau* of plane q of axis a (the exact t of the
-// decoded plane P = RN(p + 2^e q), measured from tmin, times f, minus C):
+// decoded plane P = RN(p + 2^e q), measured from tmin, times f, minus C), the roundings
+// to nearest:
 //   float part (rcp, P, o', norcp, O rounded; f exact): <= 6u f S + 2u 2^-16 J,
 //     S = |O| + |norcp|;
-//   D rounded: u|D|; on/of rounded to float and to half: (u + u_h)(|D| + E);
-//   J rounded to half, times q 2^-24 <= 2^-16: <= 2^-27 J (+ 2^-41 where subnormal);
-//   the HFMA2 result, |.| <= |on| + 2^-16 J: u_h(|D| + E + 2^-16 J), + 2^-25 if subnormal;
-//   every other subnormal half rounding: + 2^-25 each (at most three).
-// Together <= 2^-21 f S + 1.001 * 2^-10 (|D| + E) + 1.1 * 2^-27 J + 2^-23.4, and
-//   E = RN(1.25 * 2^-10 |D| + RN(2^-25 J + RN(2^-19 f S + 2^-22)))
-// exceeds it with room for its own three roundings (each term of E is at least 1.2
-// times its counterpart after E - 1.001 * 2^-10 E). Overflow: f S, f O and f tmax stay
-// below 2^125 for every node (set-up); where a value of a child the segment misses
-// leaves the half range, satfinite keeps it at +-65504, and the compares stay on the
-// conservative side (a clamped near end is lower than the exact one, and any end near
-// 65504 is rounded to 65504 itself: a half's spacing there is 32, a plane step < 2^-10).
+//   D: u|D|;
+//   J to half, times q 2^-24 <= 2^-16: <= 2^-27 J (+ 2^-41 where J is subnormal);
+//   the HFMA2 result, |.| <= |on_h| + 2^-16 J <= 1.001 (|D| + E) + 2^-16 J:
+//     <= u_h (1.001 (|D| + E) + 2^-16 J), + 2^-25 where subnormal.
+// Together <= 2^-21.4 f S + 1.002 * 2^-11 |D| + 1.001 * 2^-11 E + 1.0003 * 2^-26 J
+// + 2^-24.9, and
+//   E = RN(1.0625 * 2^-11 |D| + RN(1.125 * 2^-26 J + RN(2^-20 f S + 2^-23)))
+// exceeds it with room for its own three roundings: after E - 1.001 * 2^-11 E, each
+// term of E is still at least 1.05 times its counterpart. Overflow: f S, f O and f tmax
+// stay below 2^125 for every node (set-up), J < 2^14 keeps every product q 2^-24 J below
+// 0.25, and no operation can make a NaN. A half offset beyond +-65504 saturates in the
+// direction it was rounded: RD of a huge near offset is 65504 (lower: conservative), RU
+// of a huge negative far offset is -65504 (higher: conservative); the other two become
+// infinities, which the relu and the minimum treat conservatively. Adding a product
+// below 0.25 to 65504 gives 65504 again (the half spacing there is 32).
 #pragma once
 
 #include <cstdint>
@@ -280,7 +285,7 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const NodeWords& n, const Nod
     CWBVH_UNROLL
     for (int a = 0; a < 3; ++a) {
         const float D = fma_rn(O[a], f, -C);
-        const float Z = fma_rn(abs_fm(J[a]), 1.4901161193847656e-08f, Sf[a]);  // 2^-26 J
+        const float Z = fma_rn(abs_fm(J[a]), 1.6763806343078613e-08f, Sf[a]);  // 1.125 * 2^-26 J
         const float E = fma_rn(abs_fm(D), 5.18798828125e-04f, Z);              // 1.0625 * 2^-11 |D|
         on[a] = h2_broadcast_rd(sub_rd(D, E));  // near planes' offset, rounded down twice
         of[a] = h2_broadcast_ru(add_ru(D, E));  // far planes', up
