@@ -83,6 +83,7 @@
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/cuda_check.h"
 #include "cwbvh/kernels/device_scene.h"
+#include "cwbvh/kernels/fast_node_selfcheck.h"
 #include "cwbvh/kernels/gpu_trace.h"
 #include "cwbvh/kernels/ray_gen.h"
 #include "cwbvh/loader/loader.h"
@@ -838,6 +839,21 @@ int main(int argc, char** argv) {
                 std::printf("kernel %-26s regs %3d  local %5zu B  shared %6zu B  ptx %d  sass %d\n", info[k].name,
                             info[k].registers, info[k].local_bytes, info[k].shared_bytes, info[k].ptx_version,
                             info[k].binary_version);
+            // The fast node test's half arithmetic on this device against its host
+            // emulation (fast_node_selfcheck.h), on each scene's own nodes: a mismatch
+            // fails the check before any timing.
+            for (size_t i = 0; i < scenes.size(); ++i) {
+                const FastNodeSelfCheck sc = run_fast_node_selfcheck(scenes[i].nodes.data(), scenes[i].nodes.size(),
+                                                                     i + 1, i == 0 ? (size_t(1) << 20) : 0,
+                                                                     size_t(1) << 16);
+                if (!sc.ran) throw std::runtime_error("fast node self-check: " + sc.error);
+                std::printf("fast node test, device vs host emulation, %s: %llu (node, ray) pairs (%llu hit), %llu "
+                            "differ; %llu half/rounding cases, %llu differ\n",
+                            scenes[i].name.c_str(), (unsigned long long)sc.node_pairs,
+                            (unsigned long long)sc.node_pairs_hit, (unsigned long long)sc.node_mismatches,
+                            (unsigned long long)sc.fp16_cases, (unsigned long long)sc.fp16_mismatches);
+                if (sc.node_mismatches || sc.fp16_mismatches) failed = true;
+            }
         }
         // The OptiX peer: one line saying why when it does not run.
 #ifdef CWBVH_HAVE_OPTIX

@@ -249,49 +249,70 @@ CWBVH_HD CWBVH_INLINE void h2_le(uint32_t a, uint32_t b, bool& lo, bool& hi) {
     hi = half_to_double(lane(a, 1)) <= half_to_double(lane(b, 1));
 #endif
 }
+#if !defined(__CUDA_ARCH__)
+namespace fp16_host {
+/// Per signed 16-bit lane: init folded with the lanes of a, b and c by `better` (which
+/// of two values to keep).
+template <class Better>
+inline uint32_t fold3_s16x2(uint32_t a, uint32_t b, uint32_t c, int init, Better better) {
+    const uint32_t w[3] = {a, b, c};
+    uint32_t r = 0;
+    for (int i = 0; i < 2; ++i) {
+        int m = init;
+        for (int k = 0; k < 3; ++k) {
+            const int v = int16_t(uint16_t(w[k] >> (16 * i)));
+            m = better(v, m) ? v : m;
+        }
+        r |= uint32_t(uint16_t(m)) << (16 * i);
+    }
+    return r;
+}
+/// max(a, b, c) for any ordered type (the DPX functions' host form).
+template <class T>
+inline T max3(T a, T b, T c) {
+    const T m = a > b ? a : b;
+    return m > c ? m : c;
+}
+}  // namespace fp16_host
+#endif
+
 /// Lane-wise max(0, a, b, c) and min(a, b, c) of signed 16-bit integers (sm_90 DPX: one
 /// instruction each).
 CWBVH_HD CWBVH_INLINE uint32_t vimax3_s16x2_relu(uint32_t a, uint32_t b, uint32_t c) {
 #if defined(__CUDA_ARCH__)
     return __vimax3_s16x2_relu(a, b, c);
 #else
-    uint32_t r = 0;
-    for (int i = 0; i < 2; ++i) {
-        const uint32_t w[3] = {a, b, c};
-        int m = 0;
-        for (int k = 0; k < 3; ++k) {
-            const int v = int16_t(uint16_t(w[k] >> (16 * i)));
-            m = v > m ? v : m;
-        }
-        r |= uint32_t(uint16_t(m)) << (16 * i);
-    }
-    return r;
+    return fp16_host::fold3_s16x2(a, b, c, 0, [](int v, int m) { return v > m; });
 #endif
 }
 CWBVH_HD CWBVH_INLINE uint32_t vimin3_s16x2(uint32_t a, uint32_t b, uint32_t c) {
 #if defined(__CUDA_ARCH__)
     return __vimin3_s16x2(a, b, c);
 #else
-    uint32_t r = 0;
-    for (int i = 0; i < 2; ++i) {
-        const uint32_t w[3] = {a, b, c};
-        int m = 32767;
-        for (int k = 0; k < 3; ++k) {
-            const int v = int16_t(uint16_t(w[k] >> (16 * i)));
-            m = v < m ? v : m;
-        }
-        r |= uint32_t(uint16_t(m)) << (16 * i);
-    }
-    return r;
+    return fp16_host::fold3_s16x2(a, b, c, 32767, [](int v, int m) { return v < m; });
 #endif
 }
-/// Unsigned max of three (sm_90 DPX).
+/// Unsigned and signed max of three (sm_90 DPX: one instruction each), and max(0, a, b, c).
 CWBVH_HD CWBVH_INLINE uint32_t umax3(uint32_t a, uint32_t b, uint32_t c) {
 #if defined(__CUDA_ARCH__)
     return __vimax3_u32(a, b, c);
 #else
-    const uint32_t m = a > b ? a : b;
-    return m > c ? m : c;
+    return fp16_host::max3(a, b, c);
+#endif
+}
+CWBVH_HD CWBVH_INLINE int32_t imax3(int32_t a, int32_t b, int32_t c) {
+#if defined(__CUDA_ARCH__)
+    return __vimax3_s32(a, b, c);
+#else
+    return fp16_host::max3(a, b, c);
+#endif
+}
+CWBVH_HD CWBVH_INLINE int32_t imax3_relu(int32_t a, int32_t b, int32_t c) {
+#if defined(__CUDA_ARCH__)
+    return __vimax3_s32_relu(a, b, c);
+#else
+    const int32_t m = imax3(a, b, c);
+    return m > 0 ? m : 0;
 #endif
 }
 

@@ -116,23 +116,6 @@ CWBVH_HD CWBVH_INLINE uint32_t byte_perm(uint32_t x, uint32_t y, uint32_t s) {
     return r;
 #endif
 }
-/// Signed three-input maximum (sm_90 DPX: one instruction) and max(0, a, b, c).
-CWBVH_HD CWBVH_INLINE int32_t imax3(int32_t a, int32_t b, int32_t c) {
-#if defined(__CUDA_ARCH__)
-    return __vimax3_s32(a, b, c);
-#else
-    const int32_t m = a > b ? a : b;
-    return m > c ? m : c;
-#endif
-}
-CWBVH_HD CWBVH_INLINE int32_t imax3_relu(int32_t a, int32_t b, int32_t c) {
-#if defined(__CUDA_ARCH__)
-    return __vimax3_s32_relu(a, b, c);
-#else
-    const int32_t m = imax3(a, b, c);
-    return m > 0 ? m : 0;
-#endif
-}
 /// b << (c & 31) as the funnel shift __funnelshift_l(0, b, c).
 CWBVH_HD CWBVH_INLINE uint32_t shl_wrap(uint32_t b, uint32_t c) {
 #if defined(__CUDA_ARCH__)
@@ -353,7 +336,7 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const CwbvhNode& n, const Nod
 /// The node test a traversal runs on `r`: intersect_node_fast where the ray's set-up
 /// enabled it (r.uses_fast_test()) on sm_80 and later, the reference arithmetic otherwise.
 /// sm_90 has the three-input integer min/max in one instruction (DPX); sm_80-89 (A100,
-/// Ampere, Ada) emulate them with two-input ones and still gain: node step 295 against 377
+/// Ampere, Ada) emulate them with two-input ones and still gain: node step 289 against 377
 /// by bench/gpu/step_sizes.sh sm_80, 80 registers and no spills. On sm_75 the kernels would
 /// spill: reference arithmetic. On the host the flag selects too (the warp model and the
 /// tests run what the kernel runs).
@@ -380,7 +363,6 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_dispatch(const CwbvhNode& n, const
 }
 
 
-#if !defined(__CUDA_ARCH__)
 /// The scene constants for `count` nodes (host, once per upload: O(nodes)). Exponents
 /// outside 1..kFastMaxExponent (0 decodes every plane to p, whose planes the node frame
 /// cannot step) make the scene use intersect_node_scalar throughout.
@@ -425,6 +407,5 @@ inline NodeScale merge_node_scale(const NodeScale& a, const NodeScale& b) {
     m.frame_word = m.e_floor << 8;
     return m;
 }
-#endif
 
 }  // namespace cwbvh

@@ -81,9 +81,10 @@ struct WarpModelOptions {
     // these weights the BVH2 2009 model predicts 9.4 for the 9.5 measured there.
     // Control code (votes, pops) is left out: a few instructions per iteration.
     // These defaults describe the kernel as measured (issue 10's H100 run); the node
-    // step of today's kernel is 223 by the same probe on its common path
-    // (intersect_node_fast; 373 with the reference arithmetic, which rays the fast
-    // test does not accept take): `cwbvh model --node-instructions 223`.
+    // step of today's kernel is 188 by the same probe on its common path
+    // (intersect_node_fast in half pairs since 2026-11-27, 221 in float before; 373 with
+    // the reference arithmetic, which rays the fast test does not accept take):
+    // `cwbvh model --node-instructions 188`.
     double node_instructions = 440;      ///< one CWBVH node step (load, 8 box tests, hit mask)
     double tri_instructions = 92;        ///< one triangle test (load, test)
     double control_instructions = 0;     ///< per iteration, all 32 lanes

@@ -1,0 +1,32 @@
+// Device self-check of the fast node test (node_intersect_fast.h) and of fp16.h: on the
+// GPU each must give the bits of its host emulation, which is what the warp model, the
+// kernel emulation and the node test's contract test (tests/traverse) run. Generated
+// cases: operand bit patterns for the half and directed-rounding operations, and
+// (node, ray) pairs from a scene's own nodes with rays that take the fast test.
+// cwbvh_gpu_check runs it on every GPU check (a mismatch fails the check), the gpu
+// test area when a device is present. CUDA builds only (cwbvh_cuda).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "cwbvh/format/format.h"
+
+namespace cwbvh {
+
+struct FastNodeSelfCheck {
+    bool ran = false;               ///< false: no device or a CUDA error (error says which)
+    std::string error;
+    uint64_t fp16_cases = 0, fp16_mismatches = 0;
+    uint64_t node_pairs = 0, node_mismatches = 0;
+    uint64_t node_pairs_hit = 0;    ///< pairs with a nonzero mask (the rays reach children)
+};
+
+/// Runs `fp16_cases` operation cases and `node_pairs` (node, ray) pairs drawn from
+/// nodes[0, node_count) (deterministic in seed) on device 0 and compares every result with
+/// the host emulation. node_count 0, or a scene the fast test cannot take: no pairs.
+FastNodeSelfCheck run_fast_node_selfcheck(const CwbvhNode* nodes, size_t node_count, uint64_t seed = 1,
+                                          size_t fp16_cases = size_t(1) << 18, size_t node_pairs = size_t(1) << 18);
+
+}  // namespace cwbvh

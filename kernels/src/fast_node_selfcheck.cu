@@ -1,0 +1,194 @@
+// fast_node_selfcheck.h: one thread per case; each case is one function compiled for
+// both sides, so device and host run the same source.
+#include "cwbvh/kernels/fast_node_selfcheck.h"
+
+#include <cuda_runtime.h>
+
+#include <cmath>
+#include <cstring>
+#include <random>
+#include <vector>
+
+#include "cwbvh/kernels/fp16.h"
+#include "cwbvh/kernels/node_intersect_fast.h"
+
+namespace cwbvh {
+namespace {
+
+struct Fp16Case {
+    uint32_t a, b, c;  // half pairs
+    float x, y, z;
+};
+struct Fp16Out {
+    uint32_t fma, min, le, vmax, vmin, pack, rd, ru;
+    float fma_rd, fma_ru, sub_rd, add_ru;
+};
+
+CWBVH_HD Fp16Out run_case(const Fp16Case& k) {
+    Fp16Out o{};
+    o.fma = h2_fma(k.a, k.b, k.c);
+    o.min = h2_min(k.a, k.b);
+    bool lo = false, hi = false;
+    h2_le(k.a, k.b, lo, hi);
+    o.le = uint32_t(lo) | (uint32_t(hi) << 1);
+    o.vmax = vimax3_s16x2_relu(k.a, k.b, k.c);
+    o.vmin = vimin3_s16x2(k.a, k.b, k.c);
+    o.pack = h2_pack(k.x, k.y);
+    o.rd = h2_broadcast_rd(k.x);
+    o.ru = h2_broadcast_ru(k.y);
+    o.fma_rd = fma_rd(k.x, k.y, k.z);
+    o.fma_ru = fma_ru(k.x, k.y, k.z);
+    o.sub_rd = sub_rd(k.x, k.z);
+    o.add_ru = add_ru(k.y, k.z);
+    return o;
+}
+
+__global__ void fp16_kernel(const Fp16Case* in, Fp16Out* out, size_t n) {
+    const size_t i = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+    if (i < n) out[i] = run_case(in[i]);
+}
+
+__global__ void node_kernel(const CwbvhNode* nodes, const NodeRay* rays, const float* tmax, uint32_t frame_word,
+                            uint32_t* masks, size_t n) {
+    const size_t i = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+    if (i < n) masks[i] = intersect_node_fast(load_node_words(nodes + i), rays[i], tmax[i], frame_word);
+}
+
+// Device buffers freed on scope exit.
+template <class T>
+struct Buffer {
+    T* p = nullptr;
+    ~Buffer() { cudaFree(p); }
+};
+
+bool ok(cudaError_t e, FastNodeSelfCheck& r) {
+    if (e == cudaSuccess) return true;
+    r.error = cudaGetErrorString(e);
+    return false;
+}
+
+template <class T>
+bool to_device(const std::vector<T>& v, Buffer<T>& d, FastNodeSelfCheck& r) {
+    return ok(cudaMalloc(reinterpret_cast<void**>(&d.p), v.size() * sizeof(T)), r) &&
+           ok(cudaMemcpy(d.p, v.data(), v.size() * sizeof(T), cudaMemcpyHostToDevice), r);
+}
+
+uint16_t any_half(std::mt19937_64& g) {
+    for (;;) {
+        uint16_t h = uint16_t(g());
+        if (g() % 3 == 0) h &= 0x83FFu;  // subnormal
+        if (((h >> 10) & 0x1Fu) != 31) return h;
+    }
+}
+float any_float(std::mt19937_64& g) {
+    const uint32_t bits = uint32_t(g());
+    switch (g() % 4) {
+        case 0: return bits_to_float((bits & 0x807FFFFFu) | ((90u + uint32_t(g() % 60)) << 23));  // about the half range
+        case 1: return bits_to_float(bits & 0x807FFFFFu);                                      // float subnormal
+        default: return bits_to_float((bits & 0x807FFFFFu) | ((1u + uint32_t(g() % 253)) << 23));
+    }
+}
+
+}  // namespace
+
+FastNodeSelfCheck run_fast_node_selfcheck(const CwbvhNode* nodes, size_t node_count, uint64_t seed, size_t fp16_cases,
+                                          size_t node_pairs) {
+    FastNodeSelfCheck r;
+    int devices = 0;
+    if (!ok(cudaGetDeviceCount(&devices), r)) return r;
+    if (devices == 0) {
+        r.error = "no CUDA device";
+        return r;
+    }
+    std::mt19937_64 g(seed);
+
+    // Operation cases.
+    std::vector<Fp16Case> in(fp16_cases);
+    for (Fp16Case& k : in) {
+        k.a = uint32_t(any_half(g)) | (uint32_t(any_half(g)) << 16);
+        k.b = uint32_t(any_half(g)) | (uint32_t(any_half(g)) << 16);
+        k.c = uint32_t(any_half(g)) | (uint32_t(any_half(g)) << 16);
+        k.x = any_float(g);
+        k.y = any_float(g);
+        k.z = g() % 4 == 0 ? -k.x * k.y : any_float(g);  // cancellation
+    }
+    std::vector<Fp16Out> out(in.size());
+    if (!in.empty()) {
+        Buffer<Fp16Case> d_in;
+        Buffer<Fp16Out> d_out;
+        if (!to_device(in, d_in, r) || !ok(cudaMalloc(reinterpret_cast<void**>(&d_out.p), out.size() * sizeof(Fp16Out)), r))
+            return r;
+        fp16_kernel<<<unsigned((in.size() + 127) / 128), 128>>>(d_in.p, d_out.p, in.size());
+        if (!ok(cudaGetLastError(), r) ||
+            !ok(cudaMemcpy(out.data(), d_out.p, out.size() * sizeof(Fp16Out), cudaMemcpyDeviceToHost), r))
+            return r;
+    }
+    r.fp16_cases = in.size();
+    for (size_t i = 0; i < in.size(); ++i) {
+        const Fp16Out want = run_case(in[i]);
+        r.fp16_mismatches += std::memcmp(&want, &out[i], sizeof want) != 0;
+    }
+
+    // (node, ray) pairs: each ray aimed at a point of a random child box of the drawn
+    // node, from up to two grid extents away (a quarter from 100), some nearly
+    // axis-parallel, some with tmin > 0 or a finite tmax.
+    const NodeScale sc = node_count ? node_scale(nodes, node_count) : NodeScale{};
+    std::vector<CwbvhNode> pn;
+    std::vector<NodeRay> pr;
+    std::vector<float> pt;
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    for (size_t tries = 0; sc.usable && pn.size() < node_pairs && tries < 8 * node_pairs; ++tries) {
+        const CwbvhNode& n = nodes[g() % node_count];
+        const int slot = int(g() % 8);
+        if (n.meta[slot] == 0) continue;
+        Ray ray;
+        float size = 0.0f, len = 0.0f;
+        for (int a = 0; a < 3; ++a) size = std::fmax(size, std::ldexp(255.0f, int(n.e[a]) - 127));
+        const float dist = size * (g() % 4 == 0 ? 100.0f : 2.0f) * u(g);
+        for (int a = 0; a < 3; ++a) {
+            ray.dir[a] = 2.0f * u(g) - 1.0f;
+            if (g() % 16 == 0) ray.dir[a] *= 1e-4f;
+            len += ray.dir[a] * ray.dir[a];
+        }
+        len = std::sqrt(len);
+        for (int a = 0; a < 3; ++a) {
+            const float q = float(n.q_lo[a][slot]) + u(g) * float(n.q_hi[a][slot] - n.q_lo[a][slot]);
+            const float target = n.p[a] + std::ldexp(q, int(n.e[a]) - 127);
+            ray.org[a] = target - dist * ray.dir[a] / len;
+        }
+        ray.tmin = g() % 4 == 0 ? u(g) * size : 0.0f;
+        ray.tmax = g() % 2 == 0 ? kInfinity : u(g) * 200.0f * size;
+        if (!ray_is_traceable(ray)) continue;
+        NodeRay nr = make_node_ray(ray);
+        enable_fast_node_test(nr, sc, ray.dir, ray.tmin);
+        if (!nr.uses_fast_test()) continue;
+        pn.push_back(n);
+        pr.push_back(nr);
+        pt.push_back(ray.tmax);
+    }
+    std::vector<uint32_t> masks(pn.size());
+    if (!pn.empty()) {
+        Buffer<CwbvhNode> d_nodes;  // cudaMalloc: 256-byte aligned, so every node is 16-byte aligned
+        Buffer<NodeRay> d_rays;
+        Buffer<float> d_tmax;
+        Buffer<uint32_t> d_masks;
+        if (!to_device(pn, d_nodes, r) || !to_device(pr, d_rays, r) || !to_device(pt, d_tmax, r) ||
+            !ok(cudaMalloc(reinterpret_cast<void**>(&d_masks.p), masks.size() * sizeof(uint32_t)), r))
+            return r;
+        node_kernel<<<unsigned((pn.size() + 127) / 128), 128>>>(d_nodes.p, d_rays.p, d_tmax.p, sc.frame_word,
+                                                                 d_masks.p, pn.size());
+        if (!ok(cudaGetLastError(), r) ||
+            !ok(cudaMemcpy(masks.data(), d_masks.p, masks.size() * sizeof(uint32_t), cudaMemcpyDeviceToHost), r))
+            return r;
+    }
+    r.node_pairs = pn.size();
+    for (size_t i = 0; i < pn.size(); ++i) {
+        const uint32_t want = intersect_node_fast(pn[i], pr[i], pt[i], sc.frame_word);
+        r.node_mismatches += masks[i] != want;
+        r.node_pairs_hit += want != 0;
+    }
+    r.ran = true;
+    return r;
+}
+
+}  // namespace cwbvh
