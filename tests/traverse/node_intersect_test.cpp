@@ -267,6 +267,14 @@ TEST(NodeIntersect, NodeScaleBoundsEveryNodeAndRefusesWhatTheFastTestCannotExpre
     r = ok;
     r.org[0] = 1e37f;
     EXPECT_FALSE(fast(r, 0.0f));
+    // The node frame's factors f = 2^(116 - e_max - r) and 2^-20 f must be normal floats
+    // for every node: the ray's r = floor(log2 max|rcp|) is accepted up to 222 - e_max.
+    r = ok;
+    const int r_last = 222 - int(sc.e_max);
+    r.dir[2] = std::ldexp(1.0f, -r_last);  // rcp_z = 2^r_last
+    EXPECT_TRUE(fast(r, 0.0f)) << r_last;
+    r.dir[2] = std::ldexp(1.0f, -r_last - 1);
+    EXPECT_FALSE(fast(r, 0.0f)) << r_last + 1;
 }
 
 TEST(NodeIntersect, ScalarAndSimdAgreeBitForBit) {

@@ -41,7 +41,8 @@
 //     smaller; the integer minimum is the half minimum or a negative value, which the
 //     near end >= +0 rejects exactly when the half minimum would, but for -0 against
 //     +0: a touching extra), far is lowered to tmax_h = RU_h(RU(f tmax - C)), and the
-//     slot is hit when near <= far (closed boxes).
+//     slot is hit when near <= far (closed boxes). (tmax itself, not the moved interval's
+//     exact end tmax - tmin <= tmax: a superset, equal for the usual tmin = 0.)
 //
 // Error bound. Against the exact distance tau* of plane q of axis a (the exact t of the
 // decoded plane P = RN(p + 2^e q), measured from tmin, times f, minus C), the roundings
@@ -132,8 +133,8 @@ CWBVH_HD CWBVH_INLINE int float_exponent(float x) { return int(float_to_bits(x) 
 /// Whether the fast test is exact enough for this ray in this scene: tmin finite and
 /// >= +0 (bit pattern: -0 does not pass, callers make it +0 first), every rcp finite
 /// (make_node_ray makes |rcp| >= FLT_MIN or infinite), the node frame's factor normal
-/// for every node (r = floor(log2 max|rcp|); f = 2^(116 - e_max - r) and f 2^-19:
-/// r <= 223 - e_max, r >= -11 - e_floor over the scene),
+/// for every node (r = floor(log2 max|rcp|); f = 2^(116 - e_max - r) and f 2^-20, with
+/// e_max >= e_floor: r <= 222 - e_max, r >= -11 - e_floor over the scene),
 /// and every slab term bounded, also in the largest node frame:
 ///   (2^16 scale_max + plane_max + 2|o'|max) |rcp|max 2^(116 - e_floor - r) < 2^125
 /// (S <= (1.04 * 2^15 * 2^(e-127) + |p| + 2|o'|)(1 + 3u)|rcp| as in the float form). o':
@@ -154,7 +155,7 @@ CWBVH_HD CWBVH_INLINE bool fast_node_test_applies(const NodeScale& sc, const flo
     const int r = float_exponent(rmax);
     if (r_out) *r_out = r;
     const int em = int(sc.e_max), en = int(sc.e_floor);
-    if (r > 223 - em || r < -11 - en) return false;
+    if (r > 222 - em || r < -11 - en) return false;
     // Each sum and product below rounds to nearest (relative error <= u); the factor
     // 2 between 2^125 and the 2^126 the analysis needs absorbs them.
     const float reach = 65536.0f * sc.scale_max + sc.plane_max + 2.0f * omax;
