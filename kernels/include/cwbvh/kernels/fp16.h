@@ -7,11 +7,13 @@
 // exact (integer) computation.
 //
 // Semantics (PTX ISA): fma.rn.f16x2 rounds once to nearest even, keeps subnormals
-// (no .ftz; nvcc's -ftz flag applies to f32 only); cvt.rn.f16x2.f32 rounds to
-// nearest even; cvt.rm and cvt.rp.f16.f32 round down and up (toward zero beyond
-// +-65504 where that is the direction: RD of a huge positive value is 65504); min.f16x2 and setp.le.f16x2 compare as IEEE values (no
-// operand here is ever NaN); the DPX s16x2 functions work on the two halves as signed
-// 16-bit integers.
+// (no .ftz; nvcc's -ftz flag applies to f32 only); cvt.rn.f16x2.f32 rounds to nearest
+// even; cvt.rm and cvt.rp.f16.f32 round down and up (beyond +-65504 toward zero where
+// that is the direction: RD of a huge positive value is 65504); min.f16x2 and
+// setp.le.f16x2 compare as IEEE values (no operand here is ever NaN); the DPX s16x2
+// functions work on the two halves as signed 16-bit integers. For finite half
+// operands a * b + c is exact in double (at most 41 bits apart), so round-to-odd below
+// matters only for the float fmas.
 #pragma once
 
 #include <cstdint>
