@@ -9,6 +9,7 @@
 #include <random>
 #include <vector>
 
+#include "cwbvh/kernels/fast_node_pairs.h"
 #include "cwbvh/kernels/fp16.h"
 #include "cwbvh/kernels/node_intersect_fast.h"
 
@@ -129,43 +130,13 @@ FastNodeSelfCheck run_fast_node_selfcheck(const CwbvhNode* nodes, size_t node_co
         r.fp16_mismatches += std::memcmp(&want, &out[i], sizeof want) != 0;
     }
 
-    // (node, ray) pairs: each ray aimed at a point of a random child box of the drawn
-    // node, from up to two grid extents away (a quarter from 100), some nearly
-    // axis-parallel, some with tmin > 0 or a finite tmax.
-    const NodeScale sc = node_count ? node_scale(nodes, node_count) : NodeScale{};
-    std::vector<CwbvhNode> pn;
-    std::vector<NodeRay> pr;
-    std::vector<float> pt;
-    std::uniform_real_distribution<float> u(0.0f, 1.0f);
-    for (size_t tries = 0; sc.usable && pn.size() < node_pairs && tries < 8 * node_pairs; ++tries) {
-        const CwbvhNode& n = nodes[g() % node_count];
-        const int slot = int(g() % 8);
-        if (n.meta[slot] == 0) continue;
-        Ray ray;
-        float size = 0.0f, len = 0.0f;
-        for (int a = 0; a < 3; ++a) size = std::fmax(size, std::ldexp(255.0f, int(n.e[a]) - 127));
-        const float dist = size * (g() % 4 == 0 ? 100.0f : 2.0f) * u(g);
-        for (int a = 0; a < 3; ++a) {
-            ray.dir[a] = 2.0f * u(g) - 1.0f;
-            if (g() % 16 == 0) ray.dir[a] *= 1e-4f;
-            len += ray.dir[a] * ray.dir[a];
-        }
-        len = std::sqrt(len);
-        for (int a = 0; a < 3; ++a) {
-            const float q = float(n.q_lo[a][slot]) + u(g) * float(n.q_hi[a][slot] - n.q_lo[a][slot]);
-            const float target = n.p[a] + std::ldexp(q, int(n.e[a]) - 127);
-            ray.org[a] = target - dist * ray.dir[a] / len;
-        }
-        ray.tmin = g() % 4 == 0 ? u(g) * size : 0.0f;
-        ray.tmax = g() % 2 == 0 ? kInfinity : u(g) * 200.0f * size;
-        if (!ray_is_traceable(ray)) continue;
-        NodeRay nr = make_node_ray(ray);
-        enable_fast_node_test(nr, sc, ray.dir, ray.tmin);
-        if (!nr.uses_fast_test()) continue;
-        pn.push_back(n);
-        pr.push_back(nr);
-        pt.push_back(ray.tmax);
-    }
+    // (node, ray) pairs (fast_node_pairs.h).
+    const FastNodePairs fp = make_fast_node_pairs(nodes, node_count, seed, node_pairs);
+    const std::vector<CwbvhNode>& pn = fp.nodes;
+    const std::vector<NodeRay>& pr = fp.node_rays;
+    std::vector<float> pt(fp.rays.size());
+    for (size_t i = 0; i < pt.size(); ++i) pt[i] = fp.rays[i].tmax;
+    const NodeScale& sc = fp.scale;
     std::vector<uint32_t> masks(pn.size());
     if (!pn.empty()) {
         Buffer<CwbvhNode> d_nodes;  // cudaMalloc: 256-byte aligned, so every node is 16-byte aligned

@@ -8,9 +8,11 @@
 #include <random>
 #include <vector>
 
+#include "cwbvh/kernels/fast_node_pairs.h"
 #include "cwbvh/kernels/node_intersect.h"
 #include "cwbvh/kernels/node_intersect_fast.h"
 #include "cwbvh/oracle/oracle.h"
+#include "traverse/test_scenes.h"
 
 namespace cwbvh::test {
 namespace {
@@ -118,6 +120,18 @@ float random_dir_component(Gen& g) {
     }
 }
 
+// Child c's decoded box, and its bits in a hit mask (internal: 24 + (c ^ octinv);
+// a leaf: the bit of its first triangle).
+void child_box(const CwbvhNode& n, int c, float lo[3], float hi[3]) {
+    for (int a = 0; a < 3; ++a) {
+        lo[a] = decode_plane(n.p[a], n.e[a], n.q_lo[a][c]);
+        hi[a] = decode_plane(n.p[a], n.e[a], n.q_hi[a][c]);
+    }
+}
+uint32_t child_bit(const CwbvhNode& n, int c, uint32_t octinv) {
+    return ((n.imask >> c) & 1u) ? (1u << (24 + (c ^ octinv))) : (1u << (n.meta[c] & 0x1F));
+}
+
 // Which node test check_never_misses runs.
 enum class Which { kReference, kFast };
 
@@ -178,13 +192,9 @@ void check_never_misses(Which which, uint64_t seed) {
         for (int c = 0; c < 8; ++c) {
             if (n.meta[c] == 0) continue;
             float clo[3], chi[3];
-            for (int a = 0; a < 3; ++a) {
-                clo[a] = decode_plane(n.p[a], n.e[a], n.q_lo[a][c]);
-                chi[a] = decode_plane(n.p[a], n.e[a], n.q_hi[a][c]);
-            }
+            child_box(n, c, clo, chi);
             const bool exact = exact_box_hit(clo, chi, r);
-            const bool internal = (n.imask >> c) & 1u;
-            const uint32_t bit = internal ? (1u << (24 + (c ^ nr.octinv))) : (1u << (n.meta[c] & 0x1F));
+            const uint32_t bit = child_bit(n, c, nr.octinv);
             const bool got = (mask & bit) != 0;
             ++tested;
             exact_hits += exact;
@@ -215,6 +225,40 @@ TEST(NodeIntersect, NeverMissesExactlyHitChild) { check_never_misses(Which::kRef
 TEST(NodeIntersect, FastTestNeverMissesExactlyHitChild) {
     check_never_misses(Which::kFast, 12345);
     check_never_misses(Which::kFast, 98765);
+}
+
+// The contract on compiled trees (the core's quantization, not random planes): the pairs
+// the device self-check uses (fast_node_pairs.h), rays aimed into a child of each node.
+TEST(NodeIntersect, FastTestNeverMissesOnCompiledNodes) {
+    const std::vector<std::vector<TriangleRecord>> scenes = {random_soup(20000, 100.0f, 2.0f, 7),
+                                                             cube_mesh(40, true).tris()};
+    for (const std::vector<TriangleRecord>& tris : scenes) {
+        const WideBvh w = build_wide(tris);
+        const FastNodePairs fp = make_fast_node_pairs(w.nodes.data(), w.nodes.size(), 5, 60000);
+        ASSERT_EQ(fp.nodes.size(), 60000u);
+        uint64_t tested = 0, exact_hits = 0, misses = 0, extra = 0;
+        for (size_t i = 0; i < fp.nodes.size(); ++i) {
+            const CwbvhNode& n = fp.nodes[i];
+            const uint32_t mask = intersect_node_fast(n, fp.node_rays[i], fp.rays[i].tmax, fp.scale.frame_word);
+            for (int c = 0; c < 8; ++c) {
+                if (n.meta[c] == 0) continue;
+                float clo[3], chi[3];
+                child_box(n, c, clo, chi);
+                const bool exact = exact_box_hit(clo, chi, fp.rays[i]);
+                const uint32_t bit = child_bit(n, c, fp.node_rays[i].octinv);
+                const bool got = (mask & bit) != 0;
+                ++tested;
+                exact_hits += exact;
+                if (exact && !got && ++misses <= 5) ADD_FAILURE() << "pair " << i << " slot " << c;
+                extra += !exact && got;
+            }
+        }
+        EXPECT_EQ(misses, 0u);
+        EXPECT_GT(exact_hits, tested / 10);
+        std::printf("compiled nodes: %llu child tests, %llu exact hits, %llu misses, %llu extras (%.3f%%)\n",
+                    (unsigned long long)tested, (unsigned long long)exact_hits, (unsigned long long)misses,
+                    (unsigned long long)extra, 100.0 * double(extra) / double(tested));
+    }
 }
 
 TEST(NodeIntersect, NodeScaleBoundsEveryNodeAndRefusesWhatTheFastTestCannotExpress) {
