@@ -261,6 +261,38 @@ TEST(NodeIntersect, FastTestNeverMissesOnCompiledNodes) {
     }
 }
 
+// Far out of the usual range, still taken by the fast test: a node at scale 2^87 and
+// directions near 2^115 (|rcp| near 2^-115). 2^(e - 103) f alone overflows there; the
+// test must form J as 2^(e - 103) (f rcp) and still find the child the ray is aimed at.
+TEST(NodeIntersect, FastTestHugeSceneAndHugeDirections) {
+    Gen g(31);
+    int taken = 0;
+    for (int iter = 0; iter < 2000; ++iter) {
+        const CwbvhNode n = random_node(g, 95);
+        const int c = g.irange(0, 7);
+        if (n.meta[c] == 0) continue;
+        float lo[3], hi[3];
+        child_box(n, c, lo, hi);
+        Ray r;
+        for (int a = 0; a < 3; ++a) {
+            r.dir[a] = std::ldexp(g.uni(0.25f, 1.0f) * (g.coin() ? 1.0f : -1.0f), 115);
+            const float target = lo[a] + (hi[a] - lo[a]) * 0.5f;
+            r.org[a] = target - r.dir[a] * std::ldexp(1.0f, -110);  // about 2^5 grid-scale units away
+        }
+        r.tmin = 0.0f;
+        r.tmax = INFINITY;
+        if (!ray_is_traceable(r) || !exact_box_hit(lo, hi, r)) continue;
+        NodeRay nr = make_node_ray(r);
+        const NodeScale sc = node_scale(&n, 1);
+        enable_fast_node_test(nr, sc, r.dir, 0.0f);
+        if (!nr.uses_fast_test()) continue;
+        ++taken;
+        const uint32_t mask = intersect_node_fast(n, nr, r.tmax, sc.frame_word);
+        ASSERT_NE(mask & child_bit(n, c, nr.octinv), 0u) << "iter " << iter;
+    }
+    EXPECT_GT(taken, 500);
+}
+
 TEST(NodeIntersect, NodeScaleBoundsEveryNodeAndRefusesWhatTheFastTestCannotExpress) {
     Gen g(4242);
     std::vector<CwbvhNode> nodes;

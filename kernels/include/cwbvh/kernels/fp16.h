@@ -294,17 +294,10 @@ CWBVH_HD CWBVH_INLINE uint32_t vimin3_s16x2(uint32_t a, uint32_t b, uint32_t c) 
     return fp16_host::fold3_s16x2(a, b, c, 32767, [](int v, int m) { return v < m; });
 #endif
 }
-/// Unsigned and signed max of three (sm_90 DPX: one instruction each), and max(0, a, b, c).
+/// Unsigned max of three, and signed max(0, a, b, c) (sm_90 DPX: one instruction each).
 CWBVH_HD CWBVH_INLINE uint32_t umax3(uint32_t a, uint32_t b, uint32_t c) {
 #if defined(__CUDA_ARCH__)
     return __vimax3_u32(a, b, c);
-#else
-    return fp16_host::max3(a, b, c);
-#endif
-}
-CWBVH_HD CWBVH_INLINE int32_t imax3(int32_t a, int32_t b, int32_t c) {
-#if defined(__CUDA_ARCH__)
-    return __vimax3_s32(a, b, c);
 #else
     return fp16_host::max3(a, b, c);
 #endif
@@ -313,8 +306,7 @@ CWBVH_HD CWBVH_INLINE int32_t imax3_relu(int32_t a, int32_t b, int32_t c) {
 #if defined(__CUDA_ARCH__)
     return __vimax3_s32_relu(a, b, c);
 #else
-    const int32_t m = imax3(a, b, c);
-    return m > 0 ? m : 0;
+    return fp16_host::max3(fp16_host::max3(a, b, c), 0, 0);
 #endif
 }
 

@@ -255,9 +255,11 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_fast(const NodeWords& n, const Nod
     for (int a = 0; a < 3; ++a) {
         // J = 2^24 2^(e_a - 127) f rcp = 2^(e_a - e_max + 13 - r) rcp: exact, or below
         // 2^-126 (an axis far flatter than the node's widest: then within 2^-150 of it,
-        // or 0, which the floor of E covers).
+        // or 0, which the floor of E covers). f rcp first: it lies in [2^(116 - e_max),
+        // 2^(117 - e_max)), a normal float, while 2^(e_a - 103) f can overflow (a huge
+        // scene, |dir| beyond 2^114).
         const float scale24 = bits_to_float((e_a[a] + 24u) << 23);  // 2^(e_a - 103)
-        J[a] = mul_rn(mul_rn(scale24, f), r.rcp[a]);
+        J[a] = mul_rn(scale24, mul_rn(f, r.rcp[a]));
         O[a] = fma_rn(bits_to_float(n.w[a]), r.rcp[a], r.norcp[a]);  // RN(p rcp - RN(o' rcp))
         // The float part's error bound in the node frame, with the subnormal-half floor.
         Sf[a] = fma_rn(add_rn(abs_fm(O[a]), abs_fm(r.norcp[a])), f20, 1.1920928955078125e-07f);  // + 2^-23
