@@ -109,6 +109,14 @@ inline uint32_t pair(uint16_t lo, uint16_t hi) { return uint32_t(lo) | (uint32_t
 }  // namespace fp16_host
 #endif
 
+#if defined(__CUDA_ARCH__)
+namespace fp16_device {
+/// A word as a half2 and back (register moves only).
+__device__ __forceinline__ __half2 h2(uint32_t w) { return bit_cast_to<__half2>(w); }
+__device__ __forceinline__ uint32_t bits(__half2 h) { return bit_cast_to<uint32_t>(h); }
+}  // namespace fp16_device
+#endif
+
 /// RD(a * b + c) and RU(a * b + c), each rounded once (FFMA.RM / FFMA.RP).
 CWBVH_HD CWBVH_INLINE float fma_rd(float a, float b, float c) {
 #if defined(__CUDA_ARCH__)
@@ -144,10 +152,7 @@ CWBVH_HD CWBVH_INLINE float add_ru(float a, float b) {
 /// (RN(lo), RN(hi)), low half first (F2FP.PACK_AB).
 CWBVH_HD CWBVH_INLINE uint32_t h2_pack(float lo, float hi) {
 #if defined(__CUDA_ARCH__)
-    const __half2 h = __floats2half2_rn(lo, hi);
-    uint32_t r;
-    memcpy(&r, &h, sizeof r);
-    return r;
+    return fp16_device::bits(__floats2half2_rn(lo, hi));
 #else
     return fp16_host::pair(fp16_host::half_from_double(lo, 0), fp16_host::half_from_double(hi, 0));
 #endif
@@ -156,45 +161,29 @@ CWBVH_HD CWBVH_INLINE uint32_t h2_pack(float lo, float hi) {
 /// operand swizzle of the instruction that uses it).
 CWBVH_HD CWBVH_INLINE uint32_t h2_broadcast_rd(float x) {
 #if defined(__CUDA_ARCH__)
-    const __half2 h = __half2half2(__float2half_rd(x));
-    uint32_t r;
-    memcpy(&r, &h, sizeof r);
-    return r;
+    return fp16_device::bits(__half2half2(__float2half_rd(x)));
 #else
-    const uint16_t h = fp16_host::half_from_double(x, -1);
-    return fp16_host::pair(h, h);
+    return fp16_host::half_from_double(x, -1) * 0x00010001u;
 #endif
 }
 CWBVH_HD CWBVH_INLINE uint32_t h2_broadcast_ru(float x) {
 #if defined(__CUDA_ARCH__)
-    const __half2 h = __half2half2(__float2half_ru(x));
-    uint32_t r;
-    memcpy(&r, &h, sizeof r);
-    return r;
+    return fp16_device::bits(__half2half2(__float2half_ru(x)));
 #else
-    const uint16_t h = fp16_host::half_from_double(x, 1);
-    return fp16_host::pair(h, h);
+    return fp16_host::half_from_double(x, 1) * 0x00010001u;
 #endif
 }
 /// The low or the high half of w in both lanes (an operand swizzle on the device).
 CWBVH_HD CWBVH_INLINE uint32_t h2_lo(uint32_t w) {
 #if defined(__CUDA_ARCH__)
-    __half2 h;
-    memcpy(&h, &w, sizeof w);
-    const __half2 r = __low2half2(h);
-    memcpy(&w, &r, sizeof w);
-    return w;
+    return fp16_device::bits(__low2half2(fp16_device::h2(w)));
 #else
     return (w & 0xFFFFu) * 0x00010001u;
 #endif
 }
 CWBVH_HD CWBVH_INLINE uint32_t h2_hi(uint32_t w) {
 #if defined(__CUDA_ARCH__)
-    __half2 h;
-    memcpy(&h, &w, sizeof w);
-    const __half2 r = __high2half2(h);
-    memcpy(&w, &r, sizeof w);
-    return w;
+    return fp16_device::bits(__high2half2(fp16_device::h2(w)));
 #else
     return (w >> 16) * 0x00010001u;
 #endif
@@ -202,14 +191,7 @@ CWBVH_HD CWBVH_INLINE uint32_t h2_hi(uint32_t w) {
 /// Lane-wise RN(a * b + c), rounded once (HFMA2).
 CWBVH_HD CWBVH_INLINE uint32_t h2_fma(uint32_t a, uint32_t b, uint32_t c) {
 #if defined(__CUDA_ARCH__)
-    __half2 ha, hb, hc;
-    memcpy(&ha, &a, 4);
-    memcpy(&hb, &b, 4);
-    memcpy(&hc, &c, 4);
-    const __half2 r = __hfma2(ha, hb, hc);
-    uint32_t w;
-    memcpy(&w, &r, 4);
-    return w;
+    return fp16_device::bits(__hfma2(fp16_device::h2(a), fp16_device::h2(b), fp16_device::h2(c)));
 #else
     using namespace fp16_host;
     uint16_t r[2];
@@ -222,13 +204,7 @@ CWBVH_HD CWBVH_INLINE uint32_t h2_fma(uint32_t a, uint32_t b, uint32_t c) {
 /// Lane-wise minimum (HMNMX2; no NaN operands here; for +-0 either zero).
 CWBVH_HD CWBVH_INLINE uint32_t h2_min(uint32_t a, uint32_t b) {
 #if defined(__CUDA_ARCH__)
-    __half2 ha, hb;
-    memcpy(&ha, &a, 4);
-    memcpy(&hb, &b, 4);
-    const __half2 r = __hmin2(ha, hb);
-    uint32_t w;
-    memcpy(&w, &r, 4);
-    return w;
+    return fp16_device::bits(__hmin2(fp16_device::h2(a), fp16_device::h2(b)));
 #else
     using namespace fp16_host;
     uint16_t r[2];
