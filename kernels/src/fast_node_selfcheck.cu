@@ -5,6 +5,7 @@
 #include <cuda_runtime.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <random>
 #include <vector>
@@ -90,6 +91,48 @@ float any_float(std::mt19937_64& g) {
     }
 }
 
+std::string hex32(uint32_t v) {
+    char b[16];
+    std::snprintf(b, sizeof b, "0x%08x", v);
+    return b;
+}
+std::string hex_bytes(const void* p, size_t n) {
+    std::string s;
+    char b[4];
+    for (size_t i = 0; i < n; ++i) {
+        std::snprintf(b, sizeof b, "%02x", static_cast<const unsigned char*>(p)[i]);
+        s += b;
+    }
+    return s;
+}
+
+// One line per differing result of a case: operation(operands) device D host H, in bits.
+void report_fp16(const Fp16Case& k, const Fp16Out& dev, const Fp16Out& host, std::vector<std::string>& lines) {
+    const std::string a = hex32(k.a), b = hex32(k.b), c = hex32(k.c);
+    const std::string x = hex32(float_to_bits(k.x)), y = hex32(float_to_bits(k.y)), z = hex32(float_to_bits(k.z));
+    const struct {
+        const char* op;
+        std::string args;
+        uint32_t d, h;
+    } rows[] = {
+        {"h2_fma", a + ", " + b + ", " + c, dev.fma, host.fma},
+        {"h2_min", a + ", " + b, dev.min, host.min},
+        {"h2_le (bit 0 low, bit 1 high)", a + ", " + b, dev.le, host.le},
+        {"vimax3_s16x2_relu", a + ", " + b + ", " + c, dev.vmax, host.vmax},
+        {"vimin3_s16x2", a + ", " + b + ", " + c, dev.vmin, host.vmin},
+        {"h2_pack", x + ", " + y, dev.pack, host.pack},
+        {"h2_broadcast_rd", x, dev.rd, host.rd},
+        {"h2_broadcast_ru", y, dev.ru, host.ru},
+        {"fma_rd", x + ", " + y + ", " + z, float_to_bits(dev.fma_rd), float_to_bits(host.fma_rd)},
+        {"fma_ru", x + ", " + y + ", " + z, float_to_bits(dev.fma_ru), float_to_bits(host.fma_ru)},
+        {"sub_rd", x + ", " + z, float_to_bits(dev.sub_rd), float_to_bits(host.sub_rd)},
+        {"add_ru", y + ", " + z, float_to_bits(dev.add_ru), float_to_bits(host.add_ru)},
+    };
+    for (const auto& r : rows)
+        if (r.d != r.h && lines.size() < FastNodeSelfCheck::kReported)
+            lines.push_back(std::string(r.op) + "(" + r.args + "): device " + hex32(r.d) + ", host " + hex32(r.h));
+}
+
 }  // namespace
 
 FastNodeSelfCheck run_fast_node_selfcheck(const CwbvhNode* nodes, size_t node_count, uint64_t seed, size_t fp16_cases,
@@ -127,7 +170,10 @@ FastNodeSelfCheck run_fast_node_selfcheck(const CwbvhNode* nodes, size_t node_co
     r.fp16_cases = in.size();
     for (size_t i = 0; i < in.size(); ++i) {
         const Fp16Out want = run_case(in[i]);
-        r.fp16_mismatches += std::memcmp(&want, &out[i], sizeof want) != 0;
+        if (std::memcmp(&want, &out[i], sizeof want) != 0) {
+            ++r.fp16_mismatches;
+            report_fp16(in[i], out[i], want, r.differences);
+        }
     }
 
     // (node, ray) pairs (fast_node_pairs.h).
@@ -155,8 +201,14 @@ FastNodeSelfCheck run_fast_node_selfcheck(const CwbvhNode* nodes, size_t node_co
     r.node_pairs = pn.size();
     for (size_t i = 0; i < pn.size(); ++i) {
         const uint32_t want = intersect_node_fast(pn[i], pr[i], pt[i], sc.frame_word);
-        r.node_mismatches += masks[i] != want;
         r.node_pairs_hit += want != 0;
+        if (masks[i] == want) continue;
+        ++r.node_mismatches;
+        if (r.differences.size() < FastNodeSelfCheck::kReported)
+            r.differences.push_back("intersect_node_fast(node " + hex_bytes(&pn[i], sizeof pn[i]) + ", NodeRay " +
+                                    hex_bytes(&pr[i], sizeof pr[i]) + ", tmax " + hex32(float_to_bits(pt[i])) +
+                                    ", frame_word " + hex32(sc.frame_word) + "): device " + hex32(masks[i]) +
+                                    ", host " + hex32(want));
     }
     r.ran = true;
     return r;

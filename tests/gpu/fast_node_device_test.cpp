@@ -17,6 +17,7 @@ TEST(FastNodeDevice, MatchesTheHostEmulationBitForBit) {
     const SceneData sd = make_synthetic_scene(so);
     const FastNodeSelfCheck r = run_fast_node_selfcheck(sd.nodes.data(), sd.nodes.size());
     ASSERT_TRUE(r.ran) << r.error;
+    for (const std::string& d : r.differences) ADD_FAILURE() << "differs: " << d;
     EXPECT_EQ(r.fp16_mismatches, 0u) << "of " << r.fp16_cases;
     EXPECT_EQ(r.node_mismatches, 0u) << "of " << r.node_pairs;
     EXPECT_GT(r.node_pairs, 100000u);

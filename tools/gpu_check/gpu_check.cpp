@@ -852,6 +852,7 @@ int main(int argc, char** argv) {
                             scenes[i].name.c_str(), (unsigned long long)sc.node_pairs,
                             (unsigned long long)sc.node_pairs_hit, (unsigned long long)sc.node_mismatches,
                             (unsigned long long)sc.fp16_cases, (unsigned long long)sc.fp16_mismatches);
+                for (const std::string& d : sc.differences) std::printf("  differs: %s\n", d.c_str());
                 if (sc.node_mismatches || sc.fp16_mismatches) failed = true;
             }
         }

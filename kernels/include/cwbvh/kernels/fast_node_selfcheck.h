@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "cwbvh/format/format.h"
 
@@ -21,6 +22,12 @@ struct FastNodeSelfCheck {
     uint64_t fp16_cases = 0, fp16_mismatches = 0;
     uint64_t node_pairs = 0, node_mismatches = 0;
     uint64_t node_pairs_hit = 0;    ///< pairs with a nonzero mask (the rays reach children)
+    /// The first kReported differing cases, one line each, enough to rerun them on the
+    /// host without a GPU: the operation, its operands' bits, the device's and the
+    /// host's result bits; for a node pair the node's 80 bytes, the NodeRay's bytes,
+    /// tmax and the scene's frame word in hex.
+    static constexpr size_t kReported = 8;
+    std::vector<std::string> differences;
 };
 
 /// Runs `fp16_cases` operation cases and `node_pairs` (node, ray) pairs drawn from

@@ -59,7 +59,7 @@ struct NodeRay {
     /// For intersect_node_fast (node_intersect_fast.h): -RN(o' * rcp) per axis
     /// (enable_fast_node_test; 0 from make_node_ray).
     float norcp[3];
-    /// For intersect_node_fast: the node frame's ray part, (140 - r) << 23 with
+    /// For intersect_node_fast: the node frame's ray part, (243 - r) << 23 with
     /// r = floor(log2 max|rcp|) (enable_fast_node_test; 0 from make_node_ray).
     uint32_t frame;
 };
