@@ -41,6 +41,9 @@
 #        CSV=path of the results table (default $BUILD/gpu_check.csv; commit a copy under
 #        bench/results/gpu/ with the command and the device)
 #        COMPILE_THREADS=N cwbvhc threads (default: nproc)
+#        CWBVHC_ARGS="..." extra cwbvhc options for every scene, flattened and two-level (a
+#        tree experiment judged by GPU time over all views, e.g. "--collapse-cost-prim 0.6";
+#        use a separate BUILD folder so that the default files stay)
 #        TWO_LEVEL=auto (default: every GLB that instances a mesh) | none | "NAME ..." (scene
 #        stems, e.g. "kicad_board dense_dragons"): the scenes also compiled two-level
 #        DRY_RUN=1: build nothing and run no check; unpack the bundle and the scenes and
@@ -178,13 +181,15 @@ tarfile.open(sys.argv[1], "r:xz").extractall(sys.argv[2], **kw)' \
     sources+=(derived_board_dragons.glb)
   fi
   threads=${COMPILE_THREADS:-$(nproc)}
+  read -r -a cwbvhc_args <<< "${CWBVHC_ARGS:-}"
+  if (( ${#cwbvhc_args[@]} )); then echo "cwbvhc options for every scene (CWBVHC_ARGS): ${cwbvhc_args[*]}"; fi
   two_level=${TWO_LEVEL:-auto}
   rm -rf "$work/instanced"
   mkdir -p "$work/instanced"
   for s in "${sources[@]}"; do
     name=${s%.*}
     t0=$(date +%s.%N)
-    if ! "$bundle/cwbvhc" "$work/$s" -o "$work/$name.cwbvh" --keep-sbvh --threads "$threads" --quiet \
+    if ! "$bundle/cwbvhc" "$work/$s" -o "$work/$name.cwbvh" --keep-sbvh --threads "$threads" --quiet "${cwbvhc_args[@]}" \
          --stats-json "$work/$name.stats.json" > "$work/$name.compile.log" 2>&1; then
       cat "$work/$name.compile.log"
       echo "gpu-check: FAIL: cwbvhc could not compile $s" >&2
@@ -203,7 +208,7 @@ tarfile.open(sys.argv[1], "r:xz").extractall(sys.argv[2], **kw)' \
     esac
     inst="$work/instanced/$name.cwbvh"
     t0=$(date +%s.%N)
-    if ! "$bundle/cwbvhc" "$work/$s" -o "$inst" --threads "$threads" --quiet \
+    if ! "$bundle/cwbvhc" "$work/$s" -o "$inst" --threads "$threads" --quiet "${cwbvhc_args[@]}" \
          --stats-json "$work/instanced/$name.stats.json" > "$work/instanced/$name.compile.log" 2>&1; then
       cat "$work/instanced/$name.compile.log"
       echo "gpu-check: FAIL: cwbvhc could not compile $s with its instancing" >&2
