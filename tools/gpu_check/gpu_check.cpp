@@ -35,7 +35,8 @@
 // (an open scene's later bounces, or a small --width/--height) is printed, marked '*',
 // and kept out of the geometric means; for diffuse 1-4 together the view's summed ray
 // count decides. The means say how many sets they left out.
-// --csv PATH writes the table (for bench/results/gpu/).
+// --csv PATH writes the table (for bench/results/gpu/), after every scene as well, so that a run
+// cut short (a time limit, a CUDA error) keeps the scenes it finished.
 //
 // Two-level scenes (issue 19; format 1.2: MESH, INST, TLAS): a two-level file is given
 // beside the flattened file of the same scene key (the same stem, another folder:
@@ -1193,9 +1194,13 @@ int main(int argc, char** argv) {
                     if (bounce < kBounces) cur = next_bounce(table, cur, ref, kSeed, uint32_t(bounce + 1));
                 }
             }
+            // The table so far, after every scene: a run cut short (the device tool's time limit)
+            // keeps the scenes it finished. The last write, below, reports a failure to write.
+            if (!csv_path.empty()) (void)write_csv(csv_path, rows, device_name, width, height, repeat);
         }
     } catch (const std::exception& e) {
         std::fprintf(stderr, "cwbvh_gpu_check: error: %s\n", e.what());
+        if (!csv_path.empty()) (void)write_csv(csv_path, rows, device_name, width, height, repeat);  // what ran
         return 2;
     }
 
