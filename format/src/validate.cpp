@@ -8,12 +8,6 @@
 namespace cwbvh {
 namespace detail {
 
-std::string hex_byte(uint8_t b) {
-    char buf[8];
-    std::snprintf(buf, sizeof buf, "0x%02x", b);
-    return buf;
-}
-
 uint64_t count_of(const FileLayout& layout, uint32_t type) {
     const SectionEntry* e = layout.find(type);
     return e != nullptr ? e->element_count : 0;

@@ -21,7 +21,6 @@ T load(std::span<const uint8_t> payload, uint64_t i) {
     return v;
 }
 
-std::string hex_byte(uint8_t b);
 
 uint64_t count_of(const FileLayout& layout, uint32_t type);  ///< 0 if absent
 

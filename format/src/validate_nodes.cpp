@@ -6,6 +6,7 @@
 #include <cmath>
 #include <vector>
 
+#include "cwbvh/format/hex.h"
 #include "cwbvh/format/node_decode.h"
 #include "validate_internal.h"
 
@@ -44,14 +45,14 @@ Result check_slot(const TreeNames& t, const CwbvhNode& n, uint64_t i, int s, uin
     }
     if ((m & 0x1F) >= 24) {
         if (m != make_meta_internal(s))
-            return slot_error(t, rule::kNodeMeta, i, s, "meta " + hex_byte(m) + " is not the internal meta " +
-                                                            hex_byte(make_meta_internal(s)) + " of this slot");
+            return slot_error(t, rule::kNodeMeta, i, s, "meta " + hex8(m) + " is not the internal meta " +
+                                                            hex8(make_meta_internal(s)) + " of this slot");
         if (!internal_bit) return slot_error(t, rule::kNodeImask, i, s, "internal meta but imask bit clear");
     } else {
         const int count = meta_leaf_count(m);
         const int offset = meta_leaf_offset(m);
         if (count == 0)
-            return slot_error(t, rule::kNodeMeta, i, s, "meta " + hex_byte(m) + " has no valid unary count");
+            return slot_error(t, rule::kNodeMeta, i, s, "meta " + hex8(m) + " has no valid unary count");
         if (offset + count > kMaxNodeTriangles)
             return slot_error(t, rule::kNodeMeta, i, s, "leaf entries " + to_string(offset) + "+" + to_string(count) +
                                                             " exceed the 24 of a node");

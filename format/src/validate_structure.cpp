@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "cwbvh/format/checksum.h"
+#include "cwbvh/format/hex.h"
 #include "cwbvh/format/validate.h"
 
 namespace cwbvh {
@@ -18,13 +19,6 @@ static_assert(std::endian::native == std::endian::little,
               "the format is little-endian; a big-endian reader must byte-swap");
 
 using std::to_string;
-
-/// "0x%08x": rule 4001's flags in hexadecimal, as the "0x" says.
-std::string hex32(uint32_t v) {
-    char buf[16];
-    std::snprintf(buf, sizeof buf, "0x%08x", unsigned(v));
-    return buf;
-}
 
 bool in_file(uint64_t offset, uint64_t len, uint64_t size) { return offset <= size && len <= size - offset; }
 

@@ -5,11 +5,11 @@
 #include <cuda_runtime.h>
 
 #include <cmath>
-#include <cstdio>
 #include <cstring>
 #include <random>
 #include <vector>
 
+#include "cwbvh/format/hex.h"
 #include "cwbvh/kernels/fast_node_pairs.h"
 #include "cwbvh/kernels/fp16.h"
 #include "cwbvh/kernels/node_intersect_fast.h"
@@ -89,21 +89,6 @@ float any_float(std::mt19937_64& g) {
         case 1: return bits_to_float(bits & 0x807FFFFFu);                                      // float subnormal
         default: return bits_to_float((bits & 0x807FFFFFu) | ((1u + uint32_t(g() % 253)) << 23));
     }
-}
-
-std::string hex32(uint32_t v) {
-    char b[16];
-    std::snprintf(b, sizeof b, "0x%08x", v);
-    return b;
-}
-std::string hex_bytes(const void* p, size_t n) {
-    std::string s;
-    char b[4];
-    for (size_t i = 0; i < n; ++i) {
-        std::snprintf(b, sizeof b, "%02x", static_cast<const unsigned char*>(p)[i]);
-        s += b;
-    }
-    return s;
 }
 
 // One line per differing result of a case: operation(operands) device D host H, in bits.

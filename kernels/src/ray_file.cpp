@@ -8,6 +8,7 @@
 #include <cstring>
 
 #include "cwbvh/format/file_io.h"
+#include "cwbvh/format/hex.h"
 
 namespace cwbvh {
 namespace {
@@ -114,11 +115,7 @@ Result parse_ray_file_header(const uint8_t* bytes, size_t size, bool want_hits, 
         return bad("record_size " + std::to_string(h.record_size) + ", expected " + std::to_string(rs) +
                    (want_hits ? " (or 20 from version 1.1 on)" : ""));
     const uint32_t allowed = want_hits ? (kHitFileAnyHit | kHitFileWatertight) : 0u;
-    if ((h.flags & ~allowed) != 0) return bad("unknown flags 0x" + [&] {
-        char b[16];
-        std::snprintf(b, sizeof b, "%08x", unsigned(h.flags));
-        return std::string(b);
-    }());
+    if ((h.flags & ~allowed) != 0) return bad("unknown flags " + hex32(h.flags));
     if (h.reserved != 0) return bad("reserved header field is not 0");
     const uint64_t payload = size - kHeaderSize;
     // count * rs may overflow; compare by division instead.
