@@ -27,6 +27,7 @@
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/status.h"
 #include "cwbvh/kernels/node_intersect_fast.h"
+#include "cwbvh/kernels/query.h"
 #include "cwbvh/kernels/traverse_two_level.h"
 
 namespace cwbvh {
@@ -109,6 +110,14 @@ public:
     TwoLevelScene two_level() const {
         return TwoLevelScene{top_nodes_, top_node_count_, instances_, instance_count_, meshes_,
                              mesh_count_, nodes_,     node_count_,     tris_,      tri_count_, two_level_scale_};
+    }
+    /// The scene for inline queries from a kernel (query.h: intersect, occluded), by
+    /// value: the device pointers and the fast node test's constants; two-level when
+    /// has_two_level(). Valid while this DeviceScene lives.
+    SceneView view() const {
+        if (has_two_level()) return SceneView{two_level()};
+        return SceneView{TwoLevelScene{nullptr, 0, nullptr, 0, nullptr, 0, nodes_, node_count_, tris_, tri_count_,
+                                       node_scale_}};
     }
     uint64_t top_level_bytes() const {
         return uint64_t(top_node_count_) * sizeof(CwbvhNode) + uint64_t(instance_count_) * sizeof(InstanceRecord) +

@@ -147,15 +147,24 @@ CWBVH_HD CWBVH_STEP_INLINE bool cwbvh_triangle_step(const TriangleIntersector<kT
 
 /// Traverse one ray. nodes[0] is the root (internal). hit receives the closest hit
 /// (HitMode::kClosest) or the first found (kAny), or make_miss().
+/// scale: the scene's constants of the fast node test (node_scale() over NODE, as
+/// DeviceScene::upload computes them); with them the node steps take intersect_node_fast
+/// wherever the ray's set-up admits it, as the kernels do. NodeScale{} (the default, the
+/// CPU reference): the reference node test everywhere. Both tests are conservative, so
+/// the hit is the same (query.h, tests/kernels/query_test.cpp).
 template <TriangleTest kTest, HitMode kMode, class Stack, class Postpone = NoPostpone>
 CWBVH_HD CWBVH_INLINE TraceStatus traverse_cwbvh(const CwbvhNode* nodes, uint32_t node_count,
                                                  const TriangleRecord* tris, uint32_t tri_count,
                                                  const Ray& ray, Hit& hit, Stack& stack,
                                                  TraceCounters* counters = nullptr,
-                                                 Postpone postpone = Postpone()) {
+                                                 Postpone postpone = Postpone(),
+                                                 const NodeScale& scale = NodeScale{}) {
     hit = make_miss();
     if (!ray_is_traceable(ray) || node_count == 0) return TraceStatus::kInvalidRay;
-    const NodeRay nray = make_node_ray(ray);
+    NodeRay nray = make_node_ray(ray);
+    // The fast test measures from tmin with its sign bit clear (a -0 tmin is the same
+    // closed interval as +0: cwbvh_lane.h). Without the scene's constants it stays off.
+    if (scale.usable != 0) enable_fast_node_test(nray, scale, ray.dir, ray.tmin == 0.0f ? 0.0f : ray.tmin);
     const TriangleIntersector<kTest> tri_test(ray);
     const float tmin = ray.tmin;
     float tmax = ray.tmax;  // shrinks to the closest hit so far (closed interval)
@@ -167,7 +176,8 @@ CWBVH_HD CWBVH_INLINE TraceStatus traverse_cwbvh(const CwbvhNode* nodes, uint32_
     StackEntry node_group{0u, 0x80000000u};
     StackEntry tri_group{0u, 0u};
     for (;;) {
-        status = cwbvh_node_step(node_group, tri_group, nray, tmin, tmax, nodes, node_count, stack, n_nodes);
+        status = cwbvh_node_step(node_group, tri_group, nray, tmin, tmax, nodes, node_count, stack, n_nodes,
+                                 scale.frame_word);
         if (status != TraceStatus::kOk) break;
 
         bool done = false;

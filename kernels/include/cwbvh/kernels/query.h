@@ -1,0 +1,102 @@
+// Inline ray queries: one ray traced by the calling thread, from a renderer's own
+// kernel (a megakernel path tracer, a shading or simulation kernel that needs a
+// visibility answer in the middle of its work) or from host code.
+//
+//     __global__ void shade(cwbvh::SceneView scene, ...) {
+//         const cwbvh::QueryHit h = cwbvh::intersect(scene, ray);          // closest hit
+//         const bool blocked = cwbvh::occluded(scene, shadow_ray);       // any hit
+//     }
+//     // host: DeviceScene ds = ...; shade<<<g, b, 0, s>>>(ds.view(), ...);
+//
+// What it runs: the shared traversal loops (traverse.h for a single-level scene,
+// traverse_two_level.h for a two-level one), with the scene's fast node test
+// constants where the view has them (DeviceScene::view(): on sm_80 and later, as the
+// wavefront kernels), the watertight triangle test by default. So a hit is the CPU
+// reference's hit bit for bit (tests/kernels/query_test.cpp on the host, and on a GPU
+// cwbvh_gpu_check against trace_cwbvh_cpu / trace_two_level_cpu).
+//
+// What it does not do: the wavefront kernels' warp-level work (dynamic ray fetch,
+// triangle postponing, the stack in shared memory). The stack is the calling thread's
+// (LocalStack: 64 entries of 8 bytes, in local memory on a GPU; another type with the
+// same push/pop/empty members can be passed). For large batches of rays that are all
+// ready at once, cwbvh::trace (trace.h) is the faster call; cwbvh_gpu_check prints both.
+//
+// Node and triangle arrays must be 16-byte aligned on the device (DeviceScene's are).
+#pragma once
+
+#include <cstdint>
+
+#include "cwbvh/format/format.h"
+#include "cwbvh/format/hostdevice.h"
+#include "cwbvh/kernels/node_intersect_fast.h"
+#include "cwbvh/kernels/ray.h"
+#include "cwbvh/kernels/traverse.h"
+#include "cwbvh/kernels/traverse_two_level.h"
+#include "cwbvh/kernels/triangle_intersect.h"
+
+namespace cwbvh {
+
+/// One scene as a query reads it: pointers and counts of its sections, in the memory of
+/// the code that queries (device pointers from DeviceScene::view(), host pointers from
+/// host_view() in two_level_file.h). Trivially copyable: pass it to a kernel by value.
+/// A single-level scene has top_node_count == 0 and reads only nodes and tris;
+/// sections.node_scale holds the fast node test's constants (NodeScale{}: the reference
+/// node test everywhere).
+struct SceneView {
+    TwoLevelScene sections;
+    CWBVH_HD bool two_level() const { return sections.top_node_count != 0; }
+};
+
+/// A query's answer. hit: t (in the ray's parameter), u, v and the stored triangle's prim
+/// (the TRIS record's id, as the Hit records of trace() and the hit files), or a miss
+/// (prim == kMissPrim, t = +inf). instance: the INST index of a two-level hit, else
+/// kInvalidIndex. status: kOk, or why the answer is not exact (kInvalidRay: a ray that
+/// ray_is_traceable refuses, answered with a miss; kStackOverflow: a tree deeper than
+/// the stack; kBadIndex: a corrupt tree; hit is then the closest found so far).
+struct QueryHit {
+    Hit hit;
+    uint32_t instance;
+    TraceStatus status;
+};
+static_assert(sizeof(QueryHit) == 24, "QueryHit: no padding (device arrays of it, byte comparisons)");
+
+/// Which scenes a query's code handles. kEither: both loops are compiled into the
+/// caller (on sm_90 a kernel of the query alone takes 128 registers); kSingleLevel or
+/// kTwoLevel: one loop (96 or 124 registers), for a kernel that knows its scene. A view
+/// of the other kind is then answered with a miss and TraceStatus::kBadIndex, never
+/// traversed as what it is not.
+enum class SceneLevels : uint32_t { kEither = 0, kSingleLevel = 1, kTwoLevel = 2 };
+
+/// Traces `ray` through `scene` on the calling thread: the closest hit (kMode = kClosest)
+/// or the first one found (kAny).
+template <HitMode kMode = HitMode::kClosest, SceneLevels kLevels = SceneLevels::kEither,
+          TriangleTest kTest = TriangleTest::kWatertight, class Stack = LocalStack<kCpuStackSize>>
+CWBVH_HD CWBVH_INLINE QueryHit intersect(const SceneView& scene, const Ray& ray) {
+    QueryHit q;
+    q.hit = make_miss();
+    q.instance = kInvalidIndex;
+    const TwoLevelScene& s = scene.sections;
+    const bool two = scene.two_level();
+    if ((kLevels == SceneLevels::kSingleLevel && two) || (kLevels == SceneLevels::kTwoLevel && !two)) {
+        q.status = TraceStatus::kBadIndex;
+        return q;
+    }
+    Stack stack;
+    if (kLevels != SceneLevels::kSingleLevel && two)
+        q.status = traverse_two_level<kTest, kMode>(s, ray, q.hit, q.instance, stack);
+    else
+        q.status = traverse_cwbvh<kTest, kMode>(s.nodes, s.node_count, s.tris, s.tri_count, ray, q.hit, stack,
+                                                nullptr, NoPostpone(), s.node_scale);
+    return q;
+}
+
+/// Whether anything lies on `ray` within [tmin, tmax] (an any-hit query). A ray that
+/// cannot be answered exactly (QueryHit::status != kOk) counts as occluded only when
+/// a hit was found; use intersect<HitMode::kAny> to see the status.
+template <SceneLevels kLevels = SceneLevels::kEither, TriangleTest kTest = TriangleTest::kWatertight,
+          class Stack = LocalStack<kCpuStackSize>>
+CWBVH_HD CWBVH_INLINE bool occluded(const SceneView& scene, const Ray& ray) {
+    return intersect<HitMode::kAny, kLevels, kTest, Stack>(scene, ray).hit.prim != kMissPrim;
+}
+
+}  // namespace cwbvh
