@@ -132,6 +132,11 @@ size_t expect_reference_hits(const SceneView& view, const std::vector<Ray>& rays
                                          : intersect<HitMode::kClosest, SceneLevels::kTwoLevel>(view, rays[i]))
                 : (mode == HitMode::kAny ? intersect<HitMode::kAny, SceneLevels::kSingleLevel>(view, rays[i])
                                          : intersect<HitMode::kClosest, SceneLevels::kSingleLevel>(view, rays[i]));
+        // The record: a TRIS index whose prim is the hit's, or none for a miss.
+        const bool record_ok = q.hit.prim == kMissPrim
+                                   ? q.record == kInvalidIndex
+                                   : q.record < view.sections.tri_count && view.sections.tris[q.record].prim == q.hit.prim;
+        if (!record_ok && ++bad <= 5) ADD_FAILURE() << "ray " << i << ": record " << q.record << " for prim " << q.hit.prim;
         if (std::memcmp(&q, &q1, sizeof q) != 0 && ++bad <= 5)
             ADD_FAILURE() << "ray " << i << ": the query compiled for one kind of scene differs";
         const bool same = std::memcmp(&q.hit, &ref[i], sizeof(Hit)) == 0 && q.instance == ref_inst[i] &&
@@ -342,9 +347,13 @@ void expect_device_reference_hits(const SceneView& device_view, const SceneView&
         std::vector<TraceStatus> ref_status;
         reference(host_view_, rays, mode, ref, ref_inst, ref_status);
         size_t diff = 0;
-        for (size_t i = 0; i < n; ++i)
+        for (size_t i = 0; i < n; ++i) {
+            // The record as the host's query finds it (the same traversal order).
+            const QueryHit h = mode == HitMode::kAny ? intersect<HitMode::kAny>(host_view_, rays[i])
+                                                     : intersect<HitMode::kClosest>(host_view_, rays[i]);
             diff += std::memcmp(&got[i].hit, &ref[i], sizeof(Hit)) != 0 || got[i].instance != ref_inst[i] ||
-                    got[i].status != ref_status[i];
+                    got[i].status != ref_status[i] || got[i].record != h.record;
+        }
         EXPECT_EQ(diff, 0u) << (mode == HitMode::kAny ? "any" : "closest")
                             << (specialized ? ", compiled for this kind of scene" : ", compiled for either");
     }

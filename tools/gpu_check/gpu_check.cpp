@@ -35,6 +35,11 @@
 // (an open scene's later bounces, or a small --width/--height) is printed, marked '*',
 // and kept out of the geometric means; for diffuse 1-4 together the view's summed ray
 // count decides. The means say how many sets they left out.
+// The inline query (cwbvh/kernels/query.h: intersect, one thread per ray, as a renderer's
+// own kernel calls it; inline_kernel.cu) traces every ray set of a single-level file too,
+// closest and any hit, timed as the kernels are; its hits must be the CPU reference's bit
+// for bit (the same traversal code; a mismatch fails the check). Its speed beside the
+// CWBVH kernel's: the "inline query" means after the others, and the CSV's inline_* columns.
 // --csv PATH writes the table (for bench/results/gpu/), after every scene as well, so that a run
 // cut short (a time limit, a CUDA error) keeps the scenes it finished.
 //
@@ -94,6 +99,7 @@
 #include "cwbvh/kernels/trace.h"
 #include "cwbvh/kernels/view_catalog.h"
 #include "hit_compare.h"
+#include "inline_kernel.h"
 #ifdef CWBVH_HAVE_OPTIX  // bench/optix, built when the OptiX headers are given
 #include "optix_peer.h"
 #endif
@@ -181,6 +187,7 @@ struct Row {
     double cpu_mrays = 0;
     KernelResult k[kKernels];  ///< [kCw] CWBVH, [kB2] BVH2, [kOx] OptiX
     TwoLevelResult tl;         ///< the instanced file (tl.present)
+    KernelResult inl;          ///< the inline query (query.h) on the same file; mismatches: bitwise vs the CPU
     /// Two-level kernel speed over the flattened file's CWBVH kernel's, 0 when either did not run.
     double tl_ratio() const {
         return tl.k.ran && k[kCw].ran && k[kCw].mrays > 0 ? tl.k.mrays / k[kCw].mrays : 0.0;
@@ -240,6 +247,30 @@ double run_kernel(const DeviceScene& ds, Kernel kernel, const Ray* d_rays, Hit* 
         if (n) CWBVH_CUDA_CHECK(cudaMemcpy(inst->data(), d_inst, n * sizeof(uint32_t), cudaMemcpyDeviceToHost));
     }
     launch(nullptr, &stats);
+    std::sort(times.begin(), times.end());
+    return times[times.size() / 2];
+}
+
+/// The inline query (inline_kernel.h) timed as run_kernel times the kernels: one untimed
+/// warm-up, `repeat` timed launches, the hits of the last one; not_ok: the rays of the
+/// last launch whose status is kStackOverflow or kBadIndex.
+double run_inline(const SceneView& view, const Ray* d_rays, Hit* d_hits, size_t n, bool any, int repeat,
+                  std::vector<Hit>& hits, uint64_t& not_ok) {
+    DevBuf<unsigned long long> d_not_ok(1);
+    run_inline_query(view, d_rays, d_hits, n, any, d_not_ok.p, nullptr);
+    CWBVH_CUDA_CHECK(cudaDeviceSynchronize());
+    std::vector<float> times;
+    for (int i = 0; i < repeat; ++i) {
+        CWBVH_CUDA_CHECK(cudaMemset(d_not_ok.p, 0, sizeof(unsigned long long)));
+        float ms = 0;
+        run_inline_query(view, d_rays, d_hits, n, any, d_not_ok.p, &ms);
+        times.push_back(ms);
+    }
+    hits.resize(n);
+    if (n) CWBVH_CUDA_CHECK(cudaMemcpy(hits.data(), d_hits, n * sizeof(Hit), cudaMemcpyDeviceToHost));
+    unsigned long long bad = 0;
+    CWBVH_CUDA_CHECK(cudaMemcpy(&bad, d_not_ok.p, sizeof bad, cudaMemcpyDeviceToHost));
+    not_ok = bad;
     std::sort(times.begin(), times.end());
     return times[times.size() / 2];
 }
@@ -510,6 +541,60 @@ void print_two_level_summary(const std::vector<Row>& rows) {
                 (unsigned long long)mis, (unsigned long long)near, kKernelUlpBound);
 }
 
+/// The inline query (query.h, one thread per ray) beside the CWBVH kernel (persistent
+/// warps, dynamic fetch, shared-memory stack, postponing) on the same rays: geometric
+/// means as print_summary's (a scene: the geometric mean over its views), closest hit.
+void print_inline_summary(const std::vector<Row>& rows) {
+    std::map<std::string, std::map<std::string, std::map<int, const Row*>>> by;
+    std::vector<std::string> scene_order;
+    uint64_t mis = 0, not_ok = 0;
+    bool ran = false;
+    for (const Row& r : rows) {
+        if (!r.inl.ran) continue;
+        ran = true;
+        mis += r.inl.mismatches;
+        not_ok += r.inl.overflows;
+        if (r.query != "closest" || !r.k[kCw].ran) continue;
+        if (!by.count(r.scene)) scene_order.push_back(r.scene);
+        by[r.scene][r.view][r.bounce] = &r;
+    }
+    if (!ran) return;
+    std::printf("\nInline query (cwbvh/kernels/query.h: one thread per ray, its own stack in local memory, "
+                "compiled for single-level scenes) / CWBVH kernel, geometric mean over %zu scene(s), closest hit:\n",
+                scene_order.size());
+    std::printf("%-14s %8s %15s %14s %13s %13s\n", "rays", "scenes", "inline Mrays/s", "CWBVH Mrays/s",
+                "inline/CWBVH", "sets left out");
+    for (int set = 0; set <= kBounces; ++set) {
+        std::vector<double> mr, cw, ratio;
+        size_t left_out = 0;
+        for (const std::string& s : scene_order) {
+            std::vector<double> vmr, vcw, vratio;
+            for (const auto& [view, bounces] : by[s]) {
+                const auto it = bounces.find(set);
+                if (it == bounces.end() || it->second->inl.ms <= 0 || it->second->k[kCw].ms <= 0) continue;
+                if (!it->second->in_means()) {
+                    ++left_out;
+                    continue;
+                }
+                vmr.push_back(it->second->inl.mrays);
+                vcw.push_back(it->second->k[kCw].mrays);
+                vratio.push_back(it->second->inl.mrays / it->second->k[kCw].mrays);
+            }
+            if (!vmr.empty()) {
+                mr.push_back(geomean(vmr));
+                cw.push_back(geomean(vcw));
+                ratio.push_back(geomean(vratio));
+            }
+        }
+        std::printf("%-14s %8zu %15s %14s %13s %13zu\n", kind_name(set), mr.size(),
+                    fmt(!mr.empty(), "%.1f", geomean(mr)).c_str(), fmt(!cw.empty(), "%.1f", geomean(cw)).c_str(),
+                    fmt(!ratio.empty(), "%.2fx", geomean(ratio)).c_str(), left_out);
+    }
+    std::printf("inline query vs the CPU reference, all rays and queries: %llu rays not bit for bit, %llu overflows "
+                "or bad indices (each a failure)\n",
+                (unsigned long long)mis, (unsigned long long)not_ok);
+}
+
 /// Geometric means over scenes (a scene = the geometric mean over its views), closest hit.
 void print_summary(const std::vector<Row>& rows) {
     // key: scene -> view -> bounce -> row (closest hit only).
@@ -585,7 +670,8 @@ bool write_csv(const std::string& path, const std::vector<Row>& rows, const std:
     f << "scene,view,rays,query,width,height,count,cpu_hits,device,repeat,cwbvh_ms,cwbvh_mrays,bvh2_ms,bvh2_mrays,"
          "cwbvh_over_bvh2,cwbvh_nodes_per_ray,cwbvh_tris_per_ray,bvh2_nodes_per_ray,bvh2_tris_per_ray,"
          "cwbvh_mismatches,bvh2_mismatches,cwbvh_ties,bvh2_ties,cwbvh_overflows,bvh2_overflows,"
-         "optix_ms,optix_mrays,cwbvh_over_optix,optix_mismatches,optix_hit_vs_miss,optix_ties,in_means\n";
+         "optix_ms,optix_mrays,cwbvh_over_optix,optix_mismatches,optix_hit_vs_miss,optix_ties,in_means,"
+         "inline_ms,inline_mrays,inline_over_cwbvh,inline_mismatches,inline_not_ok\n";
     const auto& num = csv_num;
     auto cnt = [](bool ran, uint64_t v) { return ran ? std::to_string(v) : std::string(); };
     for (const Row& r : rows) {
@@ -599,7 +685,9 @@ bool write_csv(const std::string& path, const std::vector<Row>& rows, const std:
           << cnt(b.ran, b.ties) << ',' << cnt(c.ran, c.overflows) << ',' << cnt(b.ran, b.overflows) << ','
           << num(o.ran, o.ms) << ',' << num(o.ran, o.mrays) << ',' << num(r.ratio(kOx) > 0, r.ratio(kOx)) << ','
           << cnt(o.ran, o.mismatches) << ',' << cnt(o.ran, o.hit_vs_miss) << ',' << cnt(o.ran, o.ties) << ','
-          << (r.in_means() ? 1 : 0) << '\n';
+          << (r.in_means() ? 1 : 0) << ',' << num(r.inl.ran, r.inl.ms) << ',' << num(r.inl.ran, r.inl.mrays)
+          << ',' << num(r.inl.ran && c.ran && c.mrays > 0, c.mrays > 0 ? r.inl.mrays / c.mrays : 0.0) << ','
+          << cnt(r.inl.ran, r.inl.mismatches) << ',' << cnt(r.inl.ran, r.inl.overflows) << '\n';
     }
     return bool(f);
 }
@@ -1144,6 +1232,39 @@ int main(int argc, char** argv) {
                                 }
                                 if (!bvh2) cw_hits = std::move(hits);
                             }
+                            if (!ds->has_two_level()) {  // the inline query, one thread per ray
+                                std::vector<Hit> hits;
+                                uint64_t not_ok = 0;
+                                const double ms = run_inline(ds->view(), d_rays.p, d_hits.p, rays.size(), any != 0,
+                                                             repeat, hits, not_ok);
+                                const std::vector<Hit>& cpu = any ? ref_any : ref;
+                                const std::vector<uint32_t> none(rays.size(), kInvalidIndex);
+                                int64_t first = -1;
+                                uint64_t near = 0;
+                                KernelResult& kr = r.inl;
+                                kr.ran = true;
+                                kr.ms = ms;
+                                kr.mrays = ms > 0 ? double(rays.size()) / (ms * 1e3) : 0.0;
+                                kr.mismatches = compare_bitwise(hits, none, cpu, none, &first, &near);
+                                kr.overflows = not_ok;
+                                if (kr.mismatches || not_ok) {
+                                    failed = true;
+                                    std::printf("  INLINE QUERY %s %s %s %s: %llu rays not bit for bit the CPU "
+                                                "reference's (%llu within %u ulps), %llu overflows or bad indices\n",
+                                                s.name.c_str(), view.name.c_str(), r.rays_kind.c_str(),
+                                                r.query.c_str(), (unsigned long long)kr.mismatches,
+                                                (unsigned long long)near, kKernelUlpBound,
+                                                (unsigned long long)not_ok);
+                                    if (first >= 0) {
+                                        const size_t i = size_t(first);
+                                        std::printf("    first: ray %zu: gpu prim %u t %.9g u %.9g v %.9g, cpu prim "
+                                                    "%u t %.9g u %.9g v %.9g\n",
+                                                    i, hits[i].prim, double(hits[i].t), double(hits[i].u),
+                                                    double(hits[i].v), cpu[i].prim, double(cpu[i].t),
+                                                    double(cpu[i].u), double(cpu[i].v));
+                                    }
+                                }
+                            }
                             if (ds2) {  // the two-level kernel on the instanced file, the same rays
                                 DevBuf<uint32_t> d_inst(rays.size());
                                 std::vector<Hit> hits;
@@ -1228,6 +1349,7 @@ int main(int argc, char** argv) {
     print_scene_table(scenes);
     print_summary(rows);
     print_two_level_summary(rows);
+    print_inline_summary(rows);
     std::printf("%s\n", failed ? "RESULT: FAIL" : "RESULT: PASS");
     return failed ? 1 : 0;
 }

@@ -49,22 +49,28 @@ struct SceneView {
 
 /// A query's answer. hit: t (in the ray's parameter), u, v and the stored triangle's prim
 /// (the TRIS record's id, as the Hit records of trace() and the hit files), or a miss
-/// (prim == kMissPrim, t = +inf). instance: the INST index of a two-level hit, else
+/// (prim == kMissPrim, t = +inf). record: the TRIS index of the hit's record, whose
+/// vertices (sections.tris[record]) are what a shader reads for the normal (object space
+/// of the instance in a two-level scene); kInvalidIndex for a miss. instance: the INST
+/// index of a two-level hit (sections.instances[instance].object_to_world), else
 /// kInvalidIndex. status: kOk, or why the answer is not exact (kInvalidRay: a ray that
 /// ray_is_traceable refuses, answered with a miss; kStackOverflow: a tree deeper than
 /// the stack; kBadIndex: a corrupt tree; hit is then the closest found so far).
 struct QueryHit {
     Hit hit;
+    uint32_t record;
     uint32_t instance;
     TraceStatus status;
 };
-static_assert(sizeof(QueryHit) == 24, "QueryHit: no padding (device arrays of it, byte comparisons)");
+static_assert(sizeof(QueryHit) == 28, "QueryHit: no padding (device arrays of it, byte comparisons)");
 
 /// Which scenes a query's code handles. kEither: both loops are compiled into the
-/// caller (on sm_90 a kernel of the query alone takes 128 registers); kSingleLevel or
-/// kTwoLevel: one loop (96 or 124 registers), for a kernel that knows its scene. A view
+/// caller; kSingleLevel or kTwoLevel: one loop, for a kernel that knows its scene. A view
 /// of the other kind is then answered with a miss and TraceStatus::kBadIndex, never
-/// traversed as what it is not.
+/// traversed as what it is not. What one loop saves shows under a register cap: a kernel
+/// of the closest-hit query alone on sm_90 (ptxas, CUDA 13.0) needs 95-96 registers
+/// without one; capped at 80 (__launch_bounds__(128, 6)) it spills 112 bytes with
+/// kEither, 8 with kSingleLevel, 32 with kTwoLevel; capped at 64, 440, 112 and 268.
 enum class SceneLevels : uint32_t { kEither = 0, kSingleLevel = 1, kTwoLevel = 2 };
 
 /// Traces `ray` through `scene` on the calling thread: the closest hit (kMode = kClosest)
@@ -74,6 +80,7 @@ template <HitMode kMode = HitMode::kClosest, SceneLevels kLevels = SceneLevels::
 CWBVH_HD CWBVH_INLINE QueryHit intersect(const SceneView& scene, const Ray& ray) {
     QueryHit q;
     q.hit = make_miss();
+    q.record = kInvalidIndex;
     q.instance = kInvalidIndex;
     const TwoLevelScene& s = scene.sections;
     const bool two = scene.two_level();
@@ -83,10 +90,10 @@ CWBVH_HD CWBVH_INLINE QueryHit intersect(const SceneView& scene, const Ray& ray)
     }
     Stack stack;
     if (kLevels != SceneLevels::kSingleLevel && two)
-        q.status = traverse_two_level<kTest, kMode>(s, ray, q.hit, q.instance, stack);
+        q.status = traverse_two_level<kTest, kMode>(s, ray, q.hit, q.instance, stack, nullptr, &q.record);
     else
         q.status = traverse_cwbvh<kTest, kMode>(s.nodes, s.node_count, s.tris, s.tri_count, ray, q.hit, stack,
-                                                nullptr, NoPostpone(), s.node_scale);
+                                                nullptr, NoPostpone(), s.node_scale, &q.record);
     return q;
 }
 

@@ -152,14 +152,18 @@ CWBVH_HD CWBVH_STEP_INLINE bool cwbvh_triangle_step(const TriangleIntersector<kT
 /// wherever the ray's set-up admits it, as the kernels do. NodeScale{} (the default, the
 /// CPU reference): the reference node test everywhere. Both tests are conservative, so
 /// the hit is the same (query.h, tests/kernels/query_test.cpp).
+/// hit_record (optional): the TRIS index of the hit's record (kInvalidIndex for a miss),
+/// for a caller that reads the triangle (query.h).
 template <TriangleTest kTest, HitMode kMode, class Stack, class Postpone = NoPostpone>
 CWBVH_HD CWBVH_INLINE TraceStatus traverse_cwbvh(const CwbvhNode* nodes, uint32_t node_count,
                                                  const TriangleRecord* tris, uint32_t tri_count,
                                                  const Ray& ray, Hit& hit, Stack& stack,
                                                  TraceCounters* counters = nullptr,
                                                  Postpone postpone = Postpone(),
-                                                 const NodeScale& scale = NodeScale{}) {
+                                                 const NodeScale& scale = NodeScale{},
+                                                 uint32_t* hit_record = nullptr) {
     hit = make_miss();
+    if (hit_record) *hit_record = kInvalidIndex;
     if (!ray_is_traceable(ray) || node_count == 0) return TraceStatus::kInvalidRay;
     NodeRay nray = make_node_ray(ray);
     // The fast test measures from tmin with its sign bit clear (a -0 tmin is the same
@@ -192,9 +196,12 @@ CWBVH_HD CWBVH_INLINE TraceStatus traverse_cwbvh(const CwbvhNode* nodes, uint32_
                 break;
             }
             ++n_tris;
-            if (cwbvh_triangle_step(tri_test, tris[ti], tmin, tmax, hit) && kMode == HitMode::kAny) {
-                done = true;
-                break;
+            if (cwbvh_triangle_step(tri_test, tris[ti], tmin, tmax, hit)) {
+                if (hit_record) *hit_record = ti;
+                if (kMode == HitMode::kAny) {
+                    done = true;
+                    break;
+                }
             }
         }
         if (done || status != TraceStatus::kOk) break;

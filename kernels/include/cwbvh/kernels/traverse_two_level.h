@@ -78,13 +78,15 @@ CWBVH_HD CWBVH_INLINE Ray object_ray(const InstanceRecord& inst, const Ray& worl
 /// Traverse one ray through a two-level scene. hit receives the closest hit
 /// (kClosest) or the first found (kAny), or make_miss(); instance receives the
 /// INST index of the hit (kInvalidIndex for a miss). hit.prim is the global stored
-/// triangle id; t is in the parameter of `ray`.
+/// triangle id; t is in the parameter of `ray`. hit_record (optional): the TRIS index of
+/// the hit's record (object space of `instance`), kInvalidIndex for a miss.
 template <TriangleTest kTest, HitMode kMode, class Stack>
 CWBVH_HD CWBVH_INLINE TraceStatus traverse_two_level(const TwoLevelScene& scene, const Ray& ray, Hit& hit,
                                                      uint32_t& instance, Stack& stack,
-                                                     TraceCounters* counters = nullptr) {
+                                                     TraceCounters* counters = nullptr, uint32_t* hit_record = nullptr) {
     hit = make_miss();
     instance = kInvalidIndex;
+    if (hit_record) *hit_record = kInvalidIndex;
     if (!ray_is_traceable(ray) || scene.top_node_count == 0) return TraceStatus::kInvalidRay;
     // The current level's set-up: the world ray's at the top level, the object-space
     // ray's inside an instance (recomputed on entry and on return).
@@ -149,6 +151,7 @@ CWBVH_HD CWBVH_INLINE TraceStatus traverse_two_level(const TwoLevelScene& scene,
                 ++n_tris;
                 if (cwbvh_triangle_step(tri_test, scene.tris[ti], tmin, tmax, hit)) {
                     instance = current;
+                    if (hit_record) *hit_record = ti;
                     if (kMode == HitMode::kAny) {
                         done = true;
                         break;

@@ -1,0 +1,169 @@
+// inline_ao: ambient occlusion from a renderer's own code, with the inline queries of
+// cwbvh/kernels/query.h (intersect for the camera ray, occluded for the occlusion rays).
+// The shading function ao_pixel (inline_ao.h) is host/device code: on a GPU it runs in
+// the example's own kernel (inline_ao_gpu.cu) over DeviceScene::view(); without one, or
+// with --cpu, in a loop of host threads over host_view(file). Writes a binary PGM.
+//
+// usage: inline_ao SCENE.cwbvh OUT.pgm [WIDTH HEIGHT] [--samples N] [--cpu]
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "cwbvh/kernels/gpu_trace.h"
+#include "cwbvh/kernels/two_level_file.h"
+#include "cwbvh/loader/loader.h"
+#include "inline_ao.h"
+#if defined(CWBVH_HAVE_CUDA)
+#include "cwbvh/kernels/device_scene.h"
+#include "inline_ao_gpu.h"
+#endif
+
+using namespace cwbvh;
+using namespace cwbvh::example;
+
+namespace {
+
+int usage() {
+    std::fprintf(stderr, "usage: inline_ao SCENE.cwbvh OUT.pgm [WIDTH HEIGHT] [--samples N] [--cpu]\n");
+    return 2;
+}
+
+/// A camera on a diagonal of the scene's bounds, looking at their centre (50 degrees).
+AoCamera make_camera(const SceneBounds& b, int w, int h, int samples) {
+    AoCamera c{};
+    float centre[3], diag = 0.0f;
+    for (int a = 0; a < 3; ++a) {
+        centre[a] = 0.5f * (b.lo[a] + b.hi[a]);
+        diag += (b.hi[a] - b.lo[a]) * (b.hi[a] - b.lo[a]);
+    }
+    diag = std::sqrt(diag);
+    const float eye[3] = {centre[0] + 0.55f * diag, centre[1] + 0.35f * diag, centre[2] + 0.8f * diag};
+    float f[3] = {centre[0] - eye[0], centre[1] - eye[1], centre[2] - eye[2]};
+    auto normalize = [](float* v) {
+        const float l = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+        for (int a = 0; a < 3; ++a) v[a] /= l;
+    };
+    normalize(f);
+    float r[3] = {-f[2], 0.0f, f[0]};
+    normalize(r);
+    float u[3];
+    cross3(r, f, u);
+    const float th = std::tan(25.0f * 3.14159265f / 180.0f), aspect = float(w) / float(h);
+    for (int a = 0; a < 3; ++a) {
+        c.eye[a] = eye[a];
+        c.forward[a] = f[a];
+        c.right[a] = r[a] * th * aspect;
+        c.up[a] = u[a] * th;
+    }
+    c.width = w;
+    c.height = h;
+    c.samples = samples;
+    c.radius = 0.1f * diag;
+    c.epsilon = 1e-5f * diag;
+    return c;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    int w = 320, h = 240, samples = 16;
+    bool force_cpu = false;
+    std::vector<std::string> pos;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a == "--cpu") {
+            force_cpu = true;
+        } else if (a == "--samples" && i + 1 < argc) {
+            samples = std::atoi(argv[++i]);
+        } else if (a.size() > 1 && a[0] == '-') {
+            return usage();
+        } else {
+            pos.push_back(a);
+        }
+    }
+    if (pos.size() != 2 && pos.size() != 4) return usage();
+    if (pos.size() == 4) {
+        w = std::atoi(pos[2].c_str());
+        h = std::atoi(pos[3].c_str());
+    }
+    if (w <= 0 || h <= 0 || w > 16384 || h > 16384 || samples <= 0 || samples > 4096) return usage();
+
+    Expected<File> file = File::open(pos[0]);
+    if (!file.ok()) {
+        std::fprintf(stderr, "inline_ao: %s\n", file.error().message.c_str());
+        return 1;
+    }
+    const SceneBounds b = file->bounds() ? *file->bounds() : SceneBounds{{-1, -1, -1}, {1, 1, 1}};
+    const AoCamera camera = make_camera(b, w, h, samples);
+    std::vector<float> ao(size_t(w) * size_t(h));
+
+    std::string why;
+    bool on_gpu = false;
+#if defined(CWBVH_HAVE_CUDA)
+    if (!force_cpu && gpu_available(why)) {
+        Expected<DeviceScene> ds = DeviceScene::upload(*file);
+        if (!ds.ok()) {
+            std::fprintf(stderr, "inline_ao: %s\n", ds.error().message.c_str());
+            return 1;
+        }
+        float ms = 0.0f;
+        std::string error;
+        if (!render_ao_gpu(ds->view(), camera, ao, ms, error)) {
+            std::fprintf(stderr, "inline_ao: %s: GPU: %s\n", pos[0].c_str(), error.c_str());
+            return 1;
+        }
+        on_gpu = true;
+        std::printf("GPU: %dx%d pixels, %d occlusion rays each: kernel %.3f ms\n", w, h, samples, double(ms));
+    }
+#else
+    why = "built without CUDA";
+#endif
+    if (!on_gpu) {
+        if (!force_cpu) std::printf("no GPU (%s): shading on the CPU\n", why.c_str());
+        const SceneView scene = host_view(*file);  // the same function, host pointers
+        const auto t0 = std::chrono::steady_clock::now();
+        const unsigned threads = std::max(1u, std::thread::hardware_concurrency());
+        std::vector<std::thread> pool;
+        for (unsigned t = 0; t < threads; ++t)
+            pool.emplace_back([&, t] {
+                for (int y = int(t); y < h; y += int(threads))
+                    for (int x = 0; x < w; ++x) ao[size_t(y) * size_t(w) + size_t(x)] = ao_pixel(scene, camera, x, y);
+            });
+        for (std::thread& th : pool) th.join();
+        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        std::printf("CPU: %dx%d pixels, %d occlusion rays each: %.3f s (%u threads)\n", w, h, samples, s, threads);
+    }
+
+    // Grey levels: background 40, geometry 60 + 195 * unoccluded share.
+    std::vector<unsigned char> img(ao.size());
+    size_t hit = 0;
+    double sum = 0.0;
+    for (size_t i = 0; i < ao.size(); ++i) {
+        if (ao[i] < 0.0f) {
+            img[i] = 40;
+            continue;
+        }
+        ++hit;
+        sum += ao[i];
+        img[i] = (unsigned char)(60.0f + 195.0f * ao[i]);
+    }
+    FILE* f = std::fopen(pos[1].c_str(), "wb");
+    if (!f) {
+        std::fprintf(stderr, "inline_ao: %s: cannot write\n", pos[1].c_str());
+        return 1;
+    }
+    std::fprintf(f, "P5\n%d %d\n255\n", w, h);
+    const bool written = std::fwrite(img.data(), 1, img.size(), f) == img.size();
+    if (std::fclose(f) != 0 || !written) {
+        std::fprintf(stderr, "inline_ao: %s: write failed\n", pos[1].c_str());
+        return 1;
+    }
+    std::printf("%s: %zu of %zu pixels on geometry, mean unoccluded share %.3f\n", pos[1].c_str(), hit, ao.size(),
+                hit ? sum / double(hit) : 0.0);
+    return 0;
+}
