@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "../traverse/test_scenes.h"
-#include "../traverse/two_level_scene.h"
+#include "kernels_test_util.h"
 #include "cwbvh/compiler/emit.h"
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/gpu_trace.h"
@@ -79,21 +79,7 @@ SceneView two_level_view(const TwoLevelBuild& b, bool fast) {
     return v;
 }
 
-TwoLevelBuild two_level_scene() {
-    Mesh sphere = cube_mesh(6, true);
-    sphere.transform(1.0, -3.0);
-    Mesh grid = grid_mesh(8);
-    grid.transform(0.5, -2.0);
-    std::mt19937 rng(31);
-    std::uniform_real_distribution<double> pos(0, 40), sc(0.5, 2), ang(0, 6.283185307179586);
-    std::vector<Placement> p;
-    for (uint32_t i = 0; i < 200; ++i) {
-        const double a = ang(rng), s = sc(rng) * ((i % 4 == 3) ? -1 : 1), c = std::cos(a), n = std::sin(a);
-        const double m[3][4] = {{c * s, -n, 0, pos(rng)}, {n * s, c, 0, pos(rng)}, {0, 0, sc(rng), pos(rng)}};
-        p.push_back(make_placement(i % 2, m));
-    }
-    return build_two_level({sphere.tris(), grid.tris()}, p);
-}
+TwoLevelBuild two_level_scene() { return instanced_test_scene(31, 200); }
 
 /// The CPU reference's hits (and INST indices) of `rays` through `view`.
 void reference(const SceneView& view, const std::vector<Ray>& rays, HitMode mode, std::vector<Hit>& hits,
@@ -319,14 +305,6 @@ TEST(InlineQuery, StatusesOfRaysThatCannotBeAnsweredExactly) {
 }
 
 #if defined(CWBVH_HAVE_CUDA)
-bool have_gpu() {
-    std::string why;
-    const GpuStatus s = gpu_status(why);
-    if (s == GpuStatus::kNoDevice || s == GpuStatus::kNoCuda) return false;
-    EXPECT_EQ(s, GpuStatus::kReady) << why;  // a device that cannot run the kernels fails
-    return s == GpuStatus::kReady;
-}
-
 /// query_kernel.cu's kernel over `view` (device pointers) against the CPU reference.
 void expect_device_reference_hits(const SceneView& device_view, const SceneView& host_view_,
                                   const std::vector<Ray>& rays) {
@@ -376,13 +354,7 @@ TEST(InlineQueryGpu, SingleLevelKernelGivesTheCpuReferenceHits) {
 TEST(InlineQueryGpu, TwoLevelKernelGivesTheCpuReferenceHits) {
     if (!have_gpu()) GTEST_SKIP() << "no CUDA device";
     const TwoLevelBuild b = two_level_scene();
-    TwoLevelSections t;
-    t.top_nodes = b.tlas.data();
-    t.top_node_count = b.tlas.size();
-    t.instances = b.instances.data();
-    t.instance_count = b.instances.size();
-    t.meshes = b.meshes.data();
-    t.mesh_count = b.meshes.size();
+    const TwoLevelSections t = top_level_sections(b);
     Expected<DeviceScene> ds =
         DeviceScene::upload(b.nodes.data(), b.nodes.size(), b.tris.data(), b.tris.size(), nullptr, 0, t);
     ASSERT_TRUE(ds.ok()) << ds.error().message;

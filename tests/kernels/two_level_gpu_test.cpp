@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "../traverse/two_level_scene.h"
+#include "kernels_test_util.h"
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/gpu_stack.h"
 #include "cwbvh/kernels/gpu_trace.h"
@@ -24,21 +24,7 @@
 namespace cwbvh::test {
 namespace {
 
-TwoLevelBuild scene() {
-    Mesh sphere = cube_mesh(6, true);
-    sphere.transform(1.0, -3.0);
-    Mesh grid = grid_mesh(8);
-    grid.transform(0.5, -2.0);
-    std::mt19937 rng(21);
-    std::uniform_real_distribution<double> pos(0, 40), sc(0.5, 2), ang(0, 6.283185307179586);
-    std::vector<Placement> p;
-    for (uint32_t i = 0; i < 300; ++i) {
-        const double a = ang(rng), s = sc(rng) * ((i % 4 == 3) ? -1 : 1), c = std::cos(a), n = std::sin(a);
-        const double m[3][4] = {{c * s, -n, 0, pos(rng)}, {n * s, c, 0, pos(rng)}, {0, 0, sc(rng), pos(rng)}};
-        p.push_back(make_placement(i % 2, m));
-    }
-    return build_two_level({sphere.tris(), grid.tris()}, p);
-}
+TwoLevelBuild scene() { return instanced_test_scene(21, 300); }
 
 std::vector<Ray> rays_for(const TwoLevelBuild& b, size_t n) {
     std::mt19937 rng(22);
@@ -85,25 +71,11 @@ TEST(TwoLevelGpuPath, KernelStackGivesTheReferenceHits) {
 }
 
 #if defined(CWBVH_HAVE_CUDA)
-bool have_gpu() {
-    std::string why;
-    const GpuStatus s = gpu_status(why);
-    if (s == GpuStatus::kNoDevice || s == GpuStatus::kNoCuda) return false;
-    EXPECT_EQ(s, GpuStatus::kReady) << why;  // a device that cannot run the kernels fails
-    return s == GpuStatus::kReady;
-}
-
 TEST(TwoLevelGpu, HitsEqualTheCpuReferenceBitForBit) {
     if (!have_gpu()) GTEST_SKIP() << "no CUDA device";
     const TwoLevelBuild b = scene();
     const std::vector<Ray> rays = rays_for(b, 50000);
-    TwoLevelSections t;
-    t.top_nodes = b.tlas.data();
-    t.top_node_count = b.tlas.size();
-    t.instances = b.instances.data();
-    t.instance_count = b.instances.size();
-    t.meshes = b.meshes.data();
-    t.mesh_count = b.meshes.size();
+    const TwoLevelSections t = top_level_sections(b);
     Expected<DeviceScene> ds =
         DeviceScene::upload(b.nodes.data(), b.nodes.size(), b.tris.data(), b.tris.size(), nullptr, 0, t);
     ASSERT_TRUE(ds.ok()) << ds.error().message;
@@ -155,13 +127,7 @@ TEST(TwoLevelGpu, SingleLevelSceneIsRefused) {
 TEST(TwoLevelGpu, SingleLevelKernelsRefuseATwoLevelScene) {
     if (!have_gpu()) GTEST_SKIP() << "no CUDA device";
     const TwoLevelBuild b = scene();
-    TwoLevelSections t;
-    t.top_nodes = b.tlas.data();
-    t.top_node_count = b.tlas.size();
-    t.instances = b.instances.data();
-    t.instance_count = b.instances.size();
-    t.meshes = b.meshes.data();
-    t.mesh_count = b.meshes.size();
+    const TwoLevelSections t = top_level_sections(b);
     Expected<DeviceScene> ds =
         DeviceScene::upload(b.nodes.data(), b.nodes.size(), b.tris.data(), b.tris.size(), nullptr, 0, t);
     ASSERT_TRUE(ds.ok());
