@@ -25,6 +25,7 @@
 #pragma once
 
 #include <cstdint>
+#include <type_traits>
 
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/hostdevice.h"
@@ -46,6 +47,7 @@ struct SceneView {
     TwoLevelScene sections;
     CWBVH_HD bool two_level() const { return sections.top_node_count != 0; }
 };
+static_assert(std::is_trivially_copyable_v<SceneView>, "SceneView is passed to kernels by value");
 
 /// A query's answer. hit: t (in the ray's parameter), u, v and the stored triangle's prim
 /// (the TRIS record's id, as the Hit records of trace() and the hit files), or a miss
