@@ -27,6 +27,10 @@
 # trace_two_level_cpu, its hits are compared with the flattened file's, and its speed
 # is printed beside the flattened file's CWBVH kernel (geometric mean, target 0.8x).
 #
+# The inline query (cwbvh/kernels/query.h: intersect from a kernel of the caller's, one
+# thread per ray) traces every ray set of the flattened files as well: checked bit for bit
+# against the CPU reference, its Mrays/s printed beside the batch CWBVH kernel's.
+#
 # Rays come from the view catalog (views/catalog.txt: every view of each scene, inside the
 # enclosed ones; scene key = the .cwbvh file's stem), 2048x2048, primary + diffuse bounces 1-4.
 # Ray sets of fewer than 1M rays are printed but kept out of the geometric means.
