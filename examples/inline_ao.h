@@ -16,7 +16,7 @@ struct AoCamera {
     int width, height;
     int samples;      ///< occlusion rays per pixel
     float radius;     ///< occlusion distance (world units)
-    float epsilon;    ///< occlusion rays start this far along the normal (world units)
+    float epsilon;    ///< occlusion rays start this far along the normal (world units), plus 1e-6 of the hit's largest coordinate
 };
 
 /// A small hash (Jarvis' PCG step): per-pixel, per-sample random numbers in [0, 1).
@@ -80,8 +80,15 @@ CWBVH_HD inline float ao_pixel(const SceneView& scene, const AoCamera& c, int x,
     const float t1[3] = {1.0f + sign * n[0] * n[0] * ka, sign * kb, -sign * n[0]};
     const float t2[3] = {kb, sign + n[1] * n[1] * ka, -n[1]};
 
-    float hit[3];
-    for (int a = 0; a < 3; ++a) hit[a] = ray.org[a] + q.hit.t * ray.dir[a] + c.epsilon * n[a];
+    // The occlusion rays start off the surface: by the scene-relative epsilon, and by a few
+    // float spacings of the hit point's coordinates (its rounding, far from the origin).
+    float hit[3], mag = 0.0f;
+    for (int a = 0; a < 3; ++a) {
+        hit[a] = ray.org[a] + q.hit.t * ray.dir[a];
+        mag = std::fmax(mag, std::fabs(hit[a]));
+    }
+    const float eps = c.epsilon + 1e-6f * mag;
+    for (int a = 0; a < 3; ++a) hit[a] += eps * n[a];
     uint32_t rng = uint32_t(y) * 9781u + uint32_t(x) * 6271u + 1u;
     int open = 0;
     for (int s = 0; s < c.samples; ++s) {

@@ -231,7 +231,8 @@ TEST(InlineQuery, HostViewOfASingleLevelFile) {
         EXPECT_EQ(v.sections.node_count, f->nodes().size());
         EXPECT_EQ(v.sections.tri_count, f->triangles().size());
         EXPECT_EQ(v.sections.node_scale.usable, fast ? 1u : 0u);
-        EXPECT_GT(expect_reference_hits(v, rays, HitMode::kClosest), rays.size() / 4);
+        for (HitMode mode : {HitMode::kClosest, HitMode::kAny})
+            EXPECT_GT(expect_reference_hits(v, rays, mode), rays.size() / 4);
     }
 }
 
@@ -276,32 +277,58 @@ TEST(InlineQuery, StatusesOfRaysThatCannotBeAnsweredExactly) {
     const SceneView empty{};
     const float d[3] = {0, 0, 1};
     EXPECT_EQ(intersect(empty, make_ray(o, d)).status, TraceStatus::kInvalidRay);
-    // A query compiled for the other kind of scene: a miss with kBadIndex, not traversed.
+    // A query compiled for the other kind of scene: a miss with kWrongScene, not traversed.
     const QueryHit wrong = intersect<HitMode::kClosest, SceneLevels::kTwoLevel>(v, make_ray(o, d));
-    EXPECT_EQ(wrong.status, TraceStatus::kBadIndex);
+    EXPECT_EQ(wrong.status, TraceStatus::kWrongScene);
     EXPECT_EQ(wrong.hit.prim, kMissPrim);
+    EXPECT_EQ(wrong.record, kInvalidIndex);
     const TwoLevelBuild b = two_level_scene();
     EXPECT_EQ((intersect<HitMode::kAny, SceneLevels::kSingleLevel>(two_level_view(b, true), make_ray(o, d)).status),
-              TraceStatus::kBadIndex);
+              TraceStatus::kWrongScene);
     // A stack of one entry on a tree of depth > 2: kStackOverflow for some ray, whose
     // hit is then only the closest found so far (never a hit the full stack misses).
     ASSERT_GT(w.depth, 2);
     const std::vector<Ray> rays = random_rays(2000, -6.0f, 30.0f, 45);
     size_t overflows = 0;
     for (const Ray& r : rays) {
-        const QueryHit small = intersect<HitMode::kClosest, SceneLevels::kEither, TriangleTest::kWatertight, LocalStack<1>>(v, r);
+        LocalStack<1> tiny;  // the overload that takes the caller's stack
+        const QueryHit small = intersect<HitMode::kClosest>(v, r, tiny);
         const QueryHit full = intersect(v, r);
         EXPECT_EQ(full.status, TraceStatus::kOk);
+        // The record goes with the hit, whatever the status.
+        if (small.hit.prim == kMissPrim) {
+            EXPECT_EQ(small.record, kInvalidIndex);
+        } else {
+            ASSERT_LT(small.record, w.tris.size());
+            EXPECT_EQ(w.tris[small.record].prim, small.hit.prim);
+        }
         if (small.status == TraceStatus::kStackOverflow) {
             ++overflows;
             if (small.hit.prim != kMissPrim) {
                 EXPECT_GE(small.hit.t, full.hit.t);
             }
         } else {
-            EXPECT_EQ(std::memcmp(&small.hit, &full.hit, sizeof(Hit)), 0);
+            EXPECT_EQ(std::memcmp(&small, &full, sizeof small), 0);
         }
     }
     EXPECT_GT(overflows, 0u);
+    // A corrupt view: NODE cut to the root (every child index out of range), TRIS cut to
+    // one record: kBadIndex, never a read past either array.
+    SceneView cut = v;
+    cut.sections.node_count = 1;
+    SceneView cut_tris = v;
+    cut_tris.sections.tri_count = 1;
+    size_t bad_nodes = 0, bad_tris = 0;
+    for (const Ray& r : rays) {
+        bad_nodes += intersect(cut, r).status == TraceStatus::kBadIndex;
+        const QueryHit q = intersect(cut_tris, r);
+        bad_tris += q.status == TraceStatus::kBadIndex;
+        if (q.hit.prim != kMissPrim) {
+            EXPECT_EQ(q.record, 0u);
+        }
+    }
+    EXPECT_GT(bad_nodes, rays.size() / 4);
+    EXPECT_GT(bad_tris, rays.size() / 4);
 }
 
 #if defined(CWBVH_HAVE_CUDA)

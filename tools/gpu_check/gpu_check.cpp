@@ -253,7 +253,7 @@ double run_kernel(const DeviceScene& ds, Kernel kernel, const Ray* d_rays, Hit* 
 
 /// The inline query (inline_kernel.h) timed as run_kernel times the kernels: one untimed
 /// warm-up, `repeat` timed launches, the hits of the last one; not_ok: the rays of the
-/// last launch whose status is kStackOverflow or kBadIndex.
+/// last launch whose status is kStackOverflow, kBadIndex or kWrongScene.
 double run_inline(const SceneView& view, const Ray* d_rays, Hit* d_hits, size_t n, bool any, int repeat,
                   std::vector<Hit>& hits, uint64_t& not_ok) {
     DevBuf<unsigned long long> d_not_ok(1);

@@ -13,7 +13,8 @@
 namespace cwbvh {
 
 /// d_hits[i] = intersect(view, d_rays[i]).hit for i < n (closest or any hit);
-/// *d_not_ok (device, zeroed by the caller) counts the rays whose status is not kOk.
+/// *d_not_ok (device, zeroed by the caller) counts the rays whose status is
+/// kStackOverflow, kBadIndex or kWrongScene (never expected on a valid file).
 /// ms: when set, the launch's elapsed milliseconds (the call then waits for it).
 /// Throws CudaError (cuda_check.h) on a CUDA failure.
 void run_inline_query(const SceneView& view, const Ray* d_rays, Hit* d_hits, size_t n, bool any,

@@ -11,15 +11,19 @@
 // What it runs: the shared traversal loops (traverse.h for a single-level scene,
 // traverse_two_level.h for a two-level one), with the scene's fast node test
 // constants where the view has them (DeviceScene::view(): on sm_80 and later, as the
-// wavefront kernels), the watertight triangle test by default. So a hit is the CPU
+// wavefront kernels), the watertight triangle test by default. With it a hit is the CPU
 // reference's hit bit for bit (tests/kernels/query_test.cpp on the host, and on a GPU
-// cwbvh_gpu_check against trace_cwbvh_cpu / trace_two_level_cpu).
+// cwbvh_gpu_check against trace_cwbvh_cpu / trace_two_level_cpu): the watertight test
+// accepts a hit only where the exact point lies in the triangle within [tmin, tmax], so
+// inside every conservative box above it, and both node tests visit it in the same
+// order. TriangleTest::kFast gives no such guarantee.
 //
 // What it does not do: the wavefront kernels' warp-level work (dynamic ray fetch,
 // triangle postponing, the stack in shared memory). The stack is the calling thread's
-// (LocalStack: 64 entries of 8 bytes, in local memory on a GPU; another type with the
-// same push/pop/empty members can be passed). For large batches of rays that are all
-// ready at once, cwbvh::trace (trace.h) is the faster call; cwbvh_gpu_check prints both.
+// (LocalStack: 64 entries of 8 bytes, in local memory on a GPU; the overload that takes a
+// Stack& accepts another type with the same push/pop/empty members, e.g. one in shared
+// memory). For large batches of rays that are all ready at once, cwbvh::trace (trace.h) is
+// the faster call; cwbvh_gpu_check prints both.
 //
 // Node and triangle arrays must be 16-byte aligned on the device (DeviceScene's are).
 #pragma once
@@ -52,12 +56,14 @@ static_assert(std::is_trivially_copyable_v<SceneView>, "SceneView is passed to k
 /// A query's answer. hit: t (in the ray's parameter), u, v and the stored triangle's prim
 /// (the TRIS record's id, as the Hit records of trace() and the hit files), or a miss
 /// (prim == kMissPrim, t = +inf). record: the TRIS index of the hit's record, whose
-/// vertices (sections.tris[record]) are what a shader reads for the normal (object space
-/// of the instance in a two-level scene); kInvalidIndex for a miss. instance: the INST
-/// index of a two-level hit (sections.instances[instance].object_to_world), else
-/// kInvalidIndex. status: kOk, or why the answer is not exact (kInvalidRay: a ray that
-/// ray_is_traceable refuses, answered with a miss; kStackOverflow: a tree deeper than
-/// the stack; kBadIndex: a corrupt tree; hit is then the closest found so far).
+/// vertices (sections.tris[record]) are what a shader reads for the normal; in a two-level
+/// scene they are in the instance's object space (world space: apply
+/// sections.instances[instance].object_to_world, as examples/inline_ao.h does);
+/// kInvalidIndex for a miss. instance: the INST index of a two-level hit, else
+/// kInvalidIndex. status: kOk, or why the answer is not exact, with a miss or the closest
+/// hit found so far: kInvalidRay (a ray that ray_is_traceable refuses, or an empty
+/// scene: a miss), kStackOverflow (a tree deeper than the stack), kBadIndex (a corrupt
+/// tree), kWrongScene (a query compiled for the other kind of scene: a miss).
 struct QueryHit {
     Hit hit;
     uint32_t record;
@@ -68,18 +74,21 @@ static_assert(sizeof(QueryHit) == 28, "QueryHit: no padding (device arrays of it
 
 /// Which scenes a query's code handles. kEither: both loops are compiled into the
 /// caller; kSingleLevel or kTwoLevel: one loop, for a kernel that knows its scene. A view
-/// of the other kind is then answered with a miss and TraceStatus::kBadIndex, never
-/// traversed as what it is not. What one loop saves shows under a register cap: a kernel
-/// of the closest-hit query alone on sm_90 (ptxas, CUDA 13.0) needs 95-96 registers
-/// without one; capped at 80 (__launch_bounds__(128, 6)) it spills 112 bytes with
-/// kEither, 8 with kSingleLevel, 32 with kTwoLevel; capped at 64, 440, 112 and 268.
+/// of the other kind is then answered with a miss and TraceStatus::kWrongScene, never
+/// traversed as what it is not (check SceneView::two_level() on the host before the
+/// launch). What one loop saves, for a kernel of the closest-hit query alone on sm_90
+/// (ptxas, CUDA 13.0): uncapped, 128 registers with kEither and 96 with one loop (ptxas'
+/// choice varies with the surrounding kernel: 124 for cwbvh_gpu_check's kSingleLevel
+/// kernel); capped at 80 (__launch_bounds__(128, 6)), 112 bytes of spills with kEither, 8
+/// with kSingleLevel, 32 with kTwoLevel; capped at 64, 440, 112 and 268.
 enum class SceneLevels : uint32_t { kEither = 0, kSingleLevel = 1, kTwoLevel = 2 };
 
 /// Traces `ray` through `scene` on the calling thread: the closest hit (kMode = kClosest)
-/// or the first one found (kAny).
+/// or the first one found (kAny). `stack` must be empty; it is left empty unless the
+/// status is kStackOverflow or kBadIndex.
 template <HitMode kMode = HitMode::kClosest, SceneLevels kLevels = SceneLevels::kEither,
-          TriangleTest kTest = TriangleTest::kWatertight, class Stack = LocalStack<kCpuStackSize>>
-CWBVH_HD CWBVH_INLINE QueryHit intersect(const SceneView& scene, const Ray& ray) {
+          TriangleTest kTest = TriangleTest::kWatertight, class Stack>
+CWBVH_HD CWBVH_INLINE QueryHit intersect(const SceneView& scene, const Ray& ray, Stack& stack) {
     QueryHit q;
     q.hit = make_miss();
     q.record = kInvalidIndex;
@@ -87,10 +96,9 @@ CWBVH_HD CWBVH_INLINE QueryHit intersect(const SceneView& scene, const Ray& ray)
     const TwoLevelScene& s = scene.sections;
     const bool two = scene.two_level();
     if ((kLevels == SceneLevels::kSingleLevel && two) || (kLevels == SceneLevels::kTwoLevel && !two)) {
-        q.status = TraceStatus::kBadIndex;
+        q.status = TraceStatus::kWrongScene;
         return q;
     }
-    Stack stack;
     if (kLevels != SceneLevels::kSingleLevel && two)
         q.status = traverse_two_level<kTest, kMode>(s, ray, q.hit, q.instance, stack, nullptr, &q.record);
     else
@@ -99,13 +107,24 @@ CWBVH_HD CWBVH_INLINE QueryHit intersect(const SceneView& scene, const Ray& ray)
     return q;
 }
 
+/// The same with the thread's own LocalStack (64 entries, kCpuStackSize, the CPU
+/// reference's): a valid file's trees are at most 32 levels deep, a top-level path and
+/// its mesh 32 together (rules 5113 and 6041 of spec/cwbvh-format.md), which the bounds
+/// in traverse.h (depth - 1 entries) and traverse_two_level.h (top depth + mesh depth + 1)
+/// keep well inside 64.
+template <HitMode kMode = HitMode::kClosest, SceneLevels kLevels = SceneLevels::kEither,
+          TriangleTest kTest = TriangleTest::kWatertight>
+CWBVH_HD CWBVH_INLINE QueryHit intersect(const SceneView& scene, const Ray& ray) {
+    LocalStack<kCpuStackSize> stack;
+    return intersect<kMode, kLevels, kTest>(scene, ray, stack);
+}
+
 /// Whether anything lies on `ray` within [tmin, tmax] (an any-hit query). A ray that
 /// cannot be answered exactly (QueryHit::status != kOk) counts as occluded only when
 /// a hit was found; use intersect<HitMode::kAny> to see the status.
-template <SceneLevels kLevels = SceneLevels::kEither, TriangleTest kTest = TriangleTest::kWatertight,
-          class Stack = LocalStack<kCpuStackSize>>
+template <SceneLevels kLevels = SceneLevels::kEither, TriangleTest kTest = TriangleTest::kWatertight>
 CWBVH_HD CWBVH_INLINE bool occluded(const SceneView& scene, const Ray& ray) {
-    return intersect<HitMode::kAny, kLevels, kTest, Stack>(scene, ray).hit.prim != kMissPrim;
+    return intersect<HitMode::kAny, kLevels, kTest>(scene, ray).hit.prim != kMissPrim;
 }
 
 }  // namespace cwbvh

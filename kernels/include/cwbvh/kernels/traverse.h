@@ -49,6 +49,7 @@ enum class TraceStatus : uint32_t {
     kInvalidRay = 1,     ///< ray not traceable (ray.h); answered with a miss
     kStackOverflow = 2,  ///< stack too small for this tree; hit is a lower bound of nothing
     kBadIndex = 3,       ///< node or triangle index out of range: corrupt tree
+    kWrongScene = 4,     ///< an inline query compiled for the other kind of scene (query.h, SceneLevels): a miss
 };
 
 enum class HitMode : uint32_t { kClosest = 0, kAny = 1 };
