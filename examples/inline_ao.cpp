@@ -2,7 +2,9 @@
 // cwbvh/kernels/query.h (intersect for the camera ray, occluded for the occlusion rays).
 // The shading function ao_pixel (inline_ao.h) is host/device code: on a GPU it runs in
 // the example's own kernel (inline_ao_gpu.cu) over DeviceScene::view(); without one, or
-// with --cpu, in a loop of host threads over host_view(file). Writes a binary PGM.
+// with --cpu, in a loop of host threads over host_view(file). The camera: the scene's first
+// view in the view catalog (views/catalog.txt; scene key = the file's stem: inside the
+// enclosed scenes), else default_camera of the bounds. Writes a binary PGM.
 //
 // usage: inline_ao SCENE.cwbvh OUT.pgm [WIDTH HEIGHT] [--samples N] [--cpu]
 #include <algorithm>
@@ -15,7 +17,9 @@
 #include <vector>
 
 #include "cwbvh/kernels/gpu_trace.h"
+#include "cwbvh/kernels/ray_gen.h"
 #include "cwbvh/kernels/two_level_file.h"
+#include "cwbvh/kernels/view_catalog.h"
 #include "cwbvh/loader/loader.h"
 #include "inline_ao.h"
 #if defined(CWBVH_HAVE_CUDA)
@@ -31,41 +35,6 @@ namespace {
 int usage() {
     std::fprintf(stderr, "usage: inline_ao SCENE.cwbvh OUT.pgm [WIDTH HEIGHT] [--samples N] [--cpu]\n");
     return 2;
-}
-
-/// A camera on a diagonal of the scene's bounds, looking at their centre (50 degrees).
-AoCamera make_camera(const SceneBounds& b, int w, int h, int samples) {
-    AoCamera c{};
-    float centre[3], diag = 0.0f;
-    for (int a = 0; a < 3; ++a) {
-        centre[a] = 0.5f * (b.lo[a] + b.hi[a]);
-        diag += (b.hi[a] - b.lo[a]) * (b.hi[a] - b.lo[a]);
-    }
-    diag = std::sqrt(diag);
-    const float eye[3] = {centre[0] + 0.55f * diag, centre[1] + 0.35f * diag, centre[2] + 0.8f * diag};
-    float f[3] = {centre[0] - eye[0], centre[1] - eye[1], centre[2] - eye[2]};
-    auto normalize = [](float* v) {
-        const float l = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-        for (int a = 0; a < 3; ++a) v[a] /= l;
-    };
-    normalize(f);
-    float r[3] = {-f[2], 0.0f, f[0]};
-    normalize(r);
-    float u[3];
-    cross3(r, f, u);
-    const float th = std::tan(25.0f * 3.14159265f / 180.0f), aspect = float(w) / float(h);
-    for (int a = 0; a < 3; ++a) {
-        c.eye[a] = eye[a];
-        c.forward[a] = f[a];
-        c.right[a] = r[a] * th * aspect;
-        c.up[a] = u[a] * th;
-    }
-    c.width = w;
-    c.height = h;
-    c.samples = samples;
-    c.radius = 0.1f * diag;
-    c.epsilon = 1e-5f * diag;
-    return c;
 }
 
 }  // namespace
@@ -99,8 +68,22 @@ int main(int argc, char** argv) {
         return 1;
     }
     const SceneBounds b = file->bounds() ? *file->bounds() : SceneBounds{{-1, -1, -1}, {1, 1, 1}};
-    const AoCamera camera = make_camera(b, w, h, samples);
-    std::vector<float> ao(size_t(w) * size_t(h));
+    // The camera rays (host code of the library: ray_gen.h, view_catalog.h).
+    ViewCatalog catalog;
+    CatalogLoad loaded = CatalogLoad::kAbsent;
+    const Result cat = load_view_catalog("", catalog, loaded);
+    if (loaded == CatalogLoad::kError) {
+        std::fprintf(stderr, "inline_ao: %s\n", cat.message.c_str());
+        return 1;
+    }
+    const View view = benchmark_views(catalog, scene_key(pos[0]), b).front();
+    std::printf("view: %s %s (%s)\n", scene_key(pos[0]).c_str(), view.name.c_str(), format_camera(view.camera).c_str());
+    const std::vector<Ray> rays = camera_rays(view.camera, uint32_t(w), uint32_t(h));
+    float diag = 0.0f;
+    for (int a = 0; a < 3; ++a) diag += (b.hi[a] - b.lo[a]) * (b.hi[a] - b.lo[a]);
+    diag = std::sqrt(diag);
+    const AoParams params{samples, 0.05f * diag, 1e-5f * diag};
+    std::vector<float> ao(rays.size());
 
     std::string why;
     bool on_gpu = false;
@@ -113,7 +96,7 @@ int main(int argc, char** argv) {
         }
         float ms = 0.0f;
         std::string error;
-        if (!render_ao_gpu(ds->view(), camera, ao, ms, error)) {
+        if (!render_ao_gpu(ds->view(), params, rays, ao, ms, error)) {
             std::fprintf(stderr, "inline_ao: %s: GPU: %s\n", pos[0].c_str(), error.c_str());
             return 1;
         }
@@ -131,8 +114,7 @@ int main(int argc, char** argv) {
         std::vector<std::thread> pool;
         for (unsigned t = 0; t < threads; ++t)
             pool.emplace_back([&, t] {
-                for (int y = int(t); y < h; y += int(threads))
-                    for (int x = 0; x < w; ++x) ao[size_t(y) * size_t(w) + size_t(x)] = ao_pixel(scene, camera, x, y);
+                for (size_t i = t; i < rays.size(); i += threads) ao[i] = ao_pixel(scene, params, rays[i], uint32_t(i));
             });
         for (std::thread& th : pool) th.join();
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

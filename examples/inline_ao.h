@@ -11,12 +11,10 @@
 
 namespace cwbvh::example {
 
-struct AoCamera {
-    float eye[3], forward[3], right[3], up[3];  ///< right and up scaled by the half-extent of the image plane
-    int width, height;
-    int samples;      ///< occlusion rays per pixel
-    float radius;     ///< occlusion distance (world units)
-    float epsilon;    ///< occlusion rays start this far along the normal (world units), plus 1e-6 of the hit's largest coordinate
+struct AoParams {
+    int samples;    ///< occlusion rays per pixel
+    float radius;   ///< occlusion distance (world units)
+    float epsilon;  ///< occlusion rays start this far along the normal (world units), plus 1e-6 of the hit's largest coordinate
 };
 
 /// A small hash (Jarvis' PCG step): per-pixel, per-sample random numbers in [0, 1).
@@ -48,18 +46,10 @@ CWBVH_HD inline void world_vertices(const SceneView& scene, const QueryHit& q, f
     }
 }
 
-/// Pixel (x, y): -1 where the camera ray misses, else the unoccluded share of `samples`
-/// cosine-distributed rays of length `radius` from the hit point (1 = open, 0 = enclosed).
-CWBVH_HD inline float ao_pixel(const SceneView& scene, const AoCamera& c, int x, int y) {
-    const float px = 2.0f * (float(x) + 0.5f) / float(c.width) - 1.0f;
-    const float py = 1.0f - 2.0f * (float(y) + 0.5f) / float(c.height);
-    Ray ray;
-    for (int a = 0; a < 3; ++a) {
-        ray.org[a] = c.eye[a];
-        ray.dir[a] = c.forward[a] + px * c.right[a] + py * c.up[a];
-    }
-    ray.tmin = 0.0f;
-    ray.tmax = kInfinity;
+/// Pixel `pixel` seen along `ray`: -1 where the ray misses, else the unoccluded share of
+/// `samples` cosine-distributed rays of length `radius` from the hit point (1 = open,
+/// 0 = enclosed).
+CWBVH_HD inline float ao_pixel(const SceneView& scene, const AoParams& c, const Ray& ray, uint32_t pixel) {
     const QueryHit q = intersect(scene, ray);  // closest hit
     if (q.hit.prim == kMissPrim) return -1.0f;
 
@@ -89,7 +79,7 @@ CWBVH_HD inline float ao_pixel(const SceneView& scene, const AoCamera& c, int x,
     }
     const float eps = c.epsilon + 1e-6f * mag;
     for (int a = 0; a < 3; ++a) hit[a] += eps * n[a];
-    uint32_t rng = uint32_t(y) * 9781u + uint32_t(x) * 6271u + 1u;
+    uint32_t rng = pixel * 9781u + 1u;
     int open = 0;
     for (int s = 0; s < c.samples; ++s) {
         const float u1 = hash01(rng), u2 = hash01(rng);

@@ -6,10 +6,9 @@
 namespace cwbvh::example {
 namespace {
 
-__global__ void ao_kernel(SceneView scene, AoCamera camera, float* out) {
-    const int x = int(blockIdx.x * blockDim.x + threadIdx.x), y = int(blockIdx.y * blockDim.y + threadIdx.y);
-    if (x >= camera.width || y >= camera.height) return;
-    out[size_t(y) * size_t(camera.width) + size_t(x)] = ao_pixel(scene, camera, x, y);
+__global__ void ao_kernel(SceneView scene, AoParams params, const Ray* rays, float* out, uint32_t n) {
+    const uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i < n) out[i] = ao_pixel(scene, params, rays[i], i);
 }
 
 bool check(cudaError_t e, const char* what, std::string& error) {
@@ -20,27 +19,31 @@ bool check(cudaError_t e, const char* what, std::string& error) {
 
 }  // namespace
 
-bool render_ao_gpu(const SceneView& scene, const AoCamera& camera, std::vector<float>& ao, float& kernel_ms,
-                   std::string& error) {
-    const size_t n = size_t(camera.width) * size_t(camera.height);
+bool render_ao_gpu(const SceneView& scene, const AoParams& params, const std::vector<Ray>& rays,
+                   std::vector<float>& ao, float& kernel_ms, std::string& error) {
+    const uint32_t n = uint32_t(rays.size());
+    Ray* d_rays = nullptr;
     float* d_out = nullptr;
-    if (!check(cudaMalloc(&d_out, n * sizeof(float)), "cudaMalloc", error)) return false;
-    cudaEvent_t start, stop;
-    bool ok = check(cudaEventCreate(&start), "cudaEventCreate", error) &&
-              check(cudaEventCreate(&stop), "cudaEventCreate", error);
+    bool ok = check(cudaMalloc(&d_rays, n * sizeof(Ray)), "cudaMalloc", error) &&
+              check(cudaMalloc(&d_out, n * sizeof(float)), "cudaMalloc", error) &&
+              check(cudaMemcpy(d_rays, rays.data(), n * sizeof(Ray), cudaMemcpyHostToDevice), "cudaMemcpy", error);
+    cudaEvent_t start = nullptr, stop = nullptr;
+    ok = ok && check(cudaEventCreate(&start), "cudaEventCreate", error) &&
+         check(cudaEventCreate(&stop), "cudaEventCreate", error);
     if (ok) {
-        const dim3 block(16, 8), grid((camera.width + 15) / 16, (camera.height + 7) / 8);
+        const unsigned threads = 128, blocks = (n + threads - 1) / threads;
         cudaEventRecord(start);
-        ao_kernel<<<grid, block>>>(scene, camera, d_out);  // the view: device pointers, by value
+        ao_kernel<<<blocks, threads>>>(scene, params, d_rays, d_out, n);  // the view: device pointers, by value
         cudaEventRecord(stop);
         ok = check(cudaGetLastError(), "ao_kernel launch", error) &&
              check(cudaEventSynchronize(stop), "ao_kernel", error) &&
              check(cudaEventElapsedTime(&kernel_ms, start, stop), "cudaEventElapsedTime", error);
-        cudaEventDestroy(start);
-        cudaEventDestroy(stop);
     }
+    if (start) cudaEventDestroy(start);
+    if (stop) cudaEventDestroy(stop);
     ao.resize(n);
     ok = ok && check(cudaMemcpy(ao.data(), d_out, n * sizeof(float), cudaMemcpyDeviceToHost), "cudaMemcpy", error);
+    cudaFree(d_rays);
     cudaFree(d_out);
     return ok;
 }
