@@ -82,7 +82,7 @@ int main(int argc, char** argv) {
     float diag = 0.0f;
     for (int a = 0; a < 3; ++a) diag += (b.hi[a] - b.lo[a]) * (b.hi[a] - b.lo[a]);
     diag = std::sqrt(diag);
-    const AoParams params{samples, 0.05f * diag, 1e-5f * diag};
+    const AoParams params{samples, 0.05f * diag};
     std::vector<float> ao(rays.size());
 
     std::string why;

@@ -8,22 +8,14 @@
 #include <cstdint>
 
 #include "cwbvh/kernels/query.h"
+#include "cwbvh/kernels/ray_sampling.h"
 
 namespace cwbvh::example {
 
 struct AoParams {
-    int samples;    ///< occlusion rays per pixel
-    float radius;   ///< occlusion distance (world units)
-    float epsilon;  ///< occlusion rays start this far along the normal (world units), plus 1e-6 of the hit's largest coordinate
+    int samples;   ///< occlusion rays per pixel
+    float radius;  ///< occlusion distance (world units)
 };
-
-/// A small hash (Jarvis' PCG step): per-pixel, per-sample random numbers in [0, 1).
-CWBVH_HD inline float hash01(uint32_t& state) {
-    state = state * 747796405u + 2891336453u;
-    uint32_t w = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
-    w = (w >> 22u) ^ w;
-    return float(w >> 8) * (1.0f / 16777216.0f);
-}
 
 CWBVH_HD inline void cross3(const float* a, const float* b, float* c) {
     c[0] = a[1] * b[2] - a[2] * b[1];
@@ -64,30 +56,24 @@ CWBVH_HD inline float ao_pixel(const SceneView& scene, const AoParams& c, const 
     if (!(len > 0.0f)) return 0.0f;
     const float side = (n[0] * ray.dir[0] + n[1] * ray.dir[1] + n[2] * ray.dir[2]) > 0.0f ? -1.0f : 1.0f;
     for (float& a : n) a *= side / len;
-    // An orthonormal frame around n (Duff et al. 2017).
-    const float sign = n[2] >= 0.0f ? 1.0f : -1.0f;
-    const float ka = -1.0f / (sign + n[2]), kb = n[0] * n[1] * ka;
-    const float t1[3] = {1.0f + sign * n[0] * n[0] * ka, sign * kb, -sign * n[0]};
-    const float t2[3] = {kb, sign + n[1] * n[1] * ka, -n[1]};
-
-    // The occlusion rays start off the surface: by the scene-relative epsilon, and by a few
-    // float spacings of the hit point's coordinates (its rounding, far from the origin).
-    float hit[3], mag = 0.0f;
-    for (int a = 0; a < 3; ++a) {
-        hit[a] = ray.org[a] + q.hit.t * ray.dir[a];
-        mag = std::fmax(mag, std::fabs(hit[a]));
-    }
-    const float eps = c.epsilon + 1e-6f * mag;
-    for (int a = 0; a < 3; ++a) hit[a] += eps * n[a];
-    uint32_t rng = pixel * 9781u + 1u;
+    // The frame around n and the occlusion rays' origin: the hit point from the
+    // barycentrics (closer to the surface than org + t dir), moved off it by
+    // offset_ray_origin (a few ulps per axis: no scene scale, no epsilon), as the
+    // library's diffuse rays are (ray_gen.cpp, diffuse_ray).
+    float t1[3], t2[3], p[3], org[3];
+    orthonormal_basis(n, t1, t2);
+    for (int a = 0; a < 3; ++a)
+        p[a] = v[0][a] + q.hit.u * (v[1][a] - v[0][a]) + q.hit.v * (v[2][a] - v[0][a]);
+    offset_ray_origin(p, n, org);
     int open = 0;
     for (int s = 0; s < c.samples; ++s) {
-        const float u1 = hash01(rng), u2 = hash01(rng);
+        // Cosine-weighted (Malley): uniform on the disk, projected up.
+        const float u1 = random_unit(1u, pixel, 0u, 2u * uint32_t(s)), u2 = random_unit(1u, pixel, 0u, 2u * uint32_t(s) + 1u);
         const float r = std::sqrt(u1), phi = 6.2831853f * u2;
-        const float lx = r * std::cos(phi), ly = r * std::sin(phi), lz = std::sqrt(1.0f - u1 > 0.0f ? 1.0f - u1 : 0.0f);
+        const float lx = r * std::cos(phi), ly = r * std::sin(phi), lz = std::sqrt(1.0f - u1);
         Ray occ;
         for (int a = 0; a < 3; ++a) {
-            occ.org[a] = hit[a];
+            occ.org[a] = org[a];
             occ.dir[a] = lx * t1[a] + ly * t2[a] + lz * n[a];
         }
         occ.tmin = 0.0f;

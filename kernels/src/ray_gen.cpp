@@ -116,36 +116,6 @@ std::vector<Ray> camera_rays(const Camera& c, uint32_t width, uint32_t height) {
     return rays;
 }
 
-uint32_t pcg_hash(uint32_t x) {
-    const uint32_t state = x * 747796405u + 2891336453u;
-    const uint32_t word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
-    return (word >> 22u) ^ word;
-}
-
-float random_unit(uint32_t seed, uint32_t path, uint32_t bounce, uint32_t dim) {
-    const uint32_t h = pcg_hash(pcg_hash(pcg_hash(seed) ^ path) + bounce * 16u + dim);
-    return float(h >> 8) * (1.0f / 16777216.0f);  // exact: 24 bits
-}
-
-void offset_ray_origin(const float p[3], const float n[3], float out[3]) {
-    // Constants of the paper: origin() = 1/32, float_scale() = 1/65536, int_scale() = 256.
-    constexpr float kOrigin = 1.0f / 32.0f, kFloatScale = 1.0f / 65536.0f, kIntScale = 256.0f;
-    for (int a = 0; a < 3; ++a) {
-        if (std::fabs(p[a]) < kOrigin) {
-            out[a] = p[a] + kFloatScale * n[a];
-            continue;
-        }
-        // |n| <= 1, so the ulp step is in [-256, 256]: no integer overflow.
-        const int32_t of = int32_t(kIntScale * n[a]);
-        const uint32_t bits = float_to_bits(p[a]);
-        // Moving away from zero in ulps is + on the magnitude bits for either sign.
-        const int32_t step = (p[a] < 0) ? -of : of;
-        const int64_t mag = int64_t(bits & 0x7FFFFFFFu) + step;
-        const float moved = bits_to_float((bits & 0x80000000u) | uint32_t(mag));  // |p| >= 1/32: mag stays > 0
-        out[a] = is_finite_f(moved) ? moved : p[a];
-    }
-}
-
 PrimTable::PrimTable(const TriangleRecord* tris, size_t count) : tris_(tris) {
     uint32_t max_prim = 0;
     for (size_t i = 0; i < count; ++i) max_prim = tris[i].prim > max_prim ? tris[i].prim : max_prim;
@@ -186,12 +156,8 @@ bool diffuse_ray(const Ray& in, const Hit& hit, const TriangleRecord& tri, uint3
         if (!is_finite_f(p[a])) return false;
     }
     offset_ray_origin(p, n, out.org);
-    // Duff et al. 2017, listing 3.
-    const float sign = std::copysign(1.0f, n[2]);
-    const float a = -1.0f / (sign + n[2]);
-    const float b = n[0] * n[1] * a;
-    const float t1[3] = {1.0f + sign * n[0] * n[0] * a, sign * b, -sign * n[0]};
-    const float t2[3] = {b, sign + n[1] * n[1] * a, -n[1]};
+    float t1[3], t2[3];
+    orthonormal_basis(n, t1, t2);
     // Malley's method: uniform on the disk, projected up = cosine-weighted.
     const double u1 = random_unit(seed, path, bounce, 0), u2 = random_unit(seed, path, bounce, 1);
     const double r = std::sqrt(u1), phi = 2.0 * kPi * u2;

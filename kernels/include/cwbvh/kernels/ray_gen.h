@@ -12,6 +12,7 @@
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/status.h"
 #include "cwbvh/kernels/ray.h"
+#include "cwbvh/kernels/ray_sampling.h"
 #include "cwbvh/kernels/traverse_two_level.h"
 
 namespace cwbvh {
@@ -35,17 +36,7 @@ Result parse_camera(const std::string& text, Camera& camera);
 /// unit-length directions, tmin = 0, tmax = +inf. Up is +y (+z when looking along y).
 std::vector<Ray> camera_rays(const Camera& camera, uint32_t width, uint32_t height);
 
-/// Counter-based random numbers: PCG hash (Jarzynski, Olano 2020, "Hash Functions
-/// for GPU Rendering", JCGT 9(3)), so a value depends only on its coordinates.
-uint32_t pcg_hash(uint32_t x);
-/// Uniform in [0, 1): 24 random bits of hash(seed, path, bounce, dim).
-float random_unit(uint32_t seed, uint32_t path, uint32_t bounce, uint32_t dim);
-
-/// Wächter, Binder 2019, "A Fast and Robust Method for Avoiding Self-Intersection"
-/// (Ray Tracing Gems, ch. 6): move p off its surface along the unit normal n by a
-/// fixed number of ulps per axis (a tiny absolute step near the origin). No scene
-/// scale enters. Components that would leave the finite range stay unchanged.
-void offset_ray_origin(const float p[3], const float n[3], float out[3]);
+// pcg_hash, random_unit and offset_ray_origin: ray_sampling.h (host and device code).
 
 /// stored triangle id (TriangleRecord::prim) -> one of its records (SBVH spatial
 /// splits may store a triangle more than once, always with the same vertices).
