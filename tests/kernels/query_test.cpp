@@ -65,10 +65,8 @@ std::vector<Ray> random_rays(size_t n, float lo, float hi, uint32_t seed) {
 }
 
 SceneView single_view(const WideBvh& w, bool fast) {
-    SceneView v{TwoLevelScene{nullptr, 0, nullptr, 0, nullptr, 0, w.nodes.data(), uint32_t(w.nodes.size()),
-                              w.tris.data(), uint32_t(w.tris.size())}};
-    if (fast) v.sections.node_scale = node_scale(w.nodes.data(), w.nodes.size());
-    return v;
+    return single_level_view(w.nodes.data(), uint32_t(w.nodes.size()), w.tris.data(), uint32_t(w.tris.size()),
+                             fast ? node_scale(w.nodes.data(), w.nodes.size()) : NodeScale{});
 }
 
 SceneView two_level_view(const TwoLevelBuild& b, bool fast) {

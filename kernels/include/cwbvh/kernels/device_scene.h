@@ -116,8 +116,7 @@ public:
     /// has_two_level(). Valid while this DeviceScene lives.
     SceneView view() const {
         if (has_two_level()) return SceneView{two_level()};
-        return SceneView{TwoLevelScene{nullptr, 0, nullptr, 0, nullptr, 0, nodes_, node_count_, tris_, tri_count_,
-                                       node_scale_}};
+        return single_level_view(nodes_, node_count_, tris_, tri_count_, node_scale_);
     }
     uint64_t top_level_bytes() const {
         return uint64_t(top_node_count_) * sizeof(CwbvhNode) + uint64_t(instance_count_) * sizeof(InstanceRecord) +

@@ -53,6 +53,12 @@ struct SceneView {
 };
 static_assert(std::is_trivially_copyable_v<SceneView>, "SceneView is passed to kernels by value");
 
+/// A single-level scene's view: NODE and TRIS (and the fast node test's constants).
+CWBVH_HD inline SceneView single_level_view(const CwbvhNode* nodes, uint32_t node_count, const TriangleRecord* tris,
+                                            uint32_t tri_count, const NodeScale& scale = NodeScale{}) {
+    return SceneView{TwoLevelScene{nullptr, 0, nullptr, 0, nullptr, 0, nodes, node_count, tris, tri_count, scale}};
+}
+
 /// A query's answer. hit: t (in the ray's parameter), u, v and the stored triangle's prim
 /// (the TRIS record's id, as the Hit records of trace() and the hit files), or a miss
 /// (prim == kMissPrim, t = +inf). record: the TRIS index of the hit's record, whose

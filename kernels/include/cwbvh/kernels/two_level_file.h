@@ -38,8 +38,8 @@ inline bool two_level_scene(const File& f, TwoLevelScene& s) {
 /// arithmetic bit for bit, which is slower than the reference test: for checking.
 /// Without: the reference node test (the CPU reference's).
 inline SceneView host_view(const File& f, bool fast_node_test = false) {
-    SceneView v{TwoLevelScene{nullptr, 0, nullptr, 0, nullptr, 0, f.nodes().data(), uint32_t(f.nodes().size()),
-                              f.triangles().data(), uint32_t(f.triangles().size())}};
+    SceneView v = single_level_view(f.nodes().data(), uint32_t(f.nodes().size()), f.triangles().data(),
+                                    uint32_t(f.triangles().size()));
     two_level_scene(f, v.sections);
     if (fast_node_test && !f.nodes().empty()) {
         v.sections.node_scale = node_scale(f.nodes().data(), f.nodes().size());
