@@ -16,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include "cwbvh/format/file_io.h"
 #include "cwbvh/kernels/gpu_trace.h"
 #include "cwbvh/kernels/ray_gen.h"
 #include "cwbvh/kernels/two_level_file.h"
@@ -62,6 +63,12 @@ int main(int argc, char** argv) {
     }
     if (w <= 0 || h <= 0 || w > 16384 || h > 16384 || samples <= 0 || samples > 4096) return usage();
 
+    // Never the input as the output (the scene is mapped while the image is written).
+    const Result out_ok = check_output_path(pos[1], {pos[0]});
+    if (!out_ok.ok()) {
+        std::fprintf(stderr, "inline_ao: %s\n", out_ok.message.c_str());
+        return 2;
+    }
     Expected<File> file = File::open(pos[0]);
     if (!file.ok()) {
         std::fprintf(stderr, "inline_ao: %s\n", file.error().message.c_str());

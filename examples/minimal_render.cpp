@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "cwbvh/format/file_io.h"
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/gpu_trace.h"
 #include "cwbvh/kernels/ray_gen.h"
@@ -32,7 +33,13 @@ int main(int argc, char** argv) {
         w = std::atoi(pos[2].c_str());
         h = std::atoi(pos[3].c_str());
     }
-    if (w <= 0 || h <= 0) return 2;
+    if (w <= 0 || h <= 0 || w > 16384 || h > 16384) return 2;
+    // Never the input as the output (the scene is mapped while the image is written).
+    const Result out_ok = check_output_path(pos[1], {pos[0]});
+    if (!out_ok.ok()) {
+        std::fprintf(stderr, "minimal_render: %s\n", out_ok.message.c_str());
+        return 2;
+    }
 
     // All sections: a two-level file (format 1.2, instanced glTF) needs MESH/INST/TLAS too.
     Expected<File> file = File::open(pos[0]);
