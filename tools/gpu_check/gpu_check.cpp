@@ -100,6 +100,7 @@
 #include "cwbvh/kernels/view_catalog.h"
 #include "hit_compare.h"
 #include "inline_kernel.h"
+#include "summary.h"
 #ifdef CWBVH_HAVE_OPTIX  // bench/optix, built when the OptiX headers are given
 #include "optix_peer.h"
 #endif
@@ -108,11 +109,9 @@ namespace {
 
 using namespace cwbvh;
 
-constexpr int kBounces = 4;
+using namespace cwbvh::gpu_check;  // summary.h: the rows, their means and the summary tables
+
 constexpr uint32_t kSeed = 1;  // `cwbvh rays` default seed: the same diffuse rays
-constexpr size_t kMinRaysForMeans = 1000000;  // smaller ray sets: printed, not in the geometric means
-constexpr int kKernels = 3;                   // CWBVH, BVH2, OptiX
-constexpr int kCw = 0, kB2 = 1, kOx = 2;
 
 /// The two-level (instanced) file of a scene, beside its flattened file.
 struct Instanced {
@@ -157,46 +156,6 @@ struct Scene {
     double gas_build_ms = 0, gas_compact_ms = 0;
     std::vector<SourceRange> pmap;   ///< the flattened file's PMAP (two-level comparison)
     std::optional<Instanced> two;    ///< the instanced file of the same scene key, if given
-};
-
-/// One kernel's result on one ray set and query.
-struct KernelResult {
-    bool ran = false;
-    double ms = 0;  ///< median kernel time
-    double mrays = 0;
-    double nodes_per_ray = 0, tris_per_ray = 0;
-    uint64_t mismatches = 0, hit_vs_miss = 0, ties = 0, overflows = 0, bad_indices = 0;
-};
-
-/// The two-level kernel on the instanced file, same rays (Row::tl).
-struct TwoLevelResult {
-    bool present = false;  ///< the scene has an instanced file (CPU reference ran)
-    uint64_t cpu_hits = 0;
-    double cpu_mrays = 0;
-    KernelResult k;  ///< the kernel; k.mismatches: bitwise vs trace_two_level_cpu
-    uint64_t near = 0;  ///< of k.mismatches: same prim and instance, t within kKernelUlpBound
-    FlatCompare flat;   ///< against the flattened file's hits (GPU: its CWBVH kernel's)
-    bool flat_gpu = false;  ///< flat compared GPU hits (else the CPU references)
-};
-
-struct Row {
-    std::string scene, view, rays_kind, query;
-    int bounce = 0;  ///< 0 primary, 1..4 diffuse
-    size_t rays = 0;
-    uint64_t cpu_hits = 0;
-    double cpu_mrays = 0;
-    KernelResult k[kKernels];  ///< [kCw] CWBVH, [kB2] BVH2, [kOx] OptiX
-    TwoLevelResult tl;         ///< the instanced file (tl.present)
-    KernelResult inl;          ///< the inline query (query.h) on the same file; mismatches: bitwise vs the CPU
-    /// Two-level kernel speed over the flattened file's CWBVH kernel's, 0 when either did not run.
-    double tl_ratio() const {
-        return tl.k.ran && k[kCw].ran && k[kCw].mrays > 0 ? tl.k.mrays / k[kCw].mrays : 0.0;
-    }
-    /// CWBVH speed over kernel `other`'s, 0 when either did not run.
-    double ratio(int other = kB2) const {
-        return k[kCw].ran && k[other].ran && k[other].mrays > 0 ? k[kCw].mrays / k[other].mrays : 0.0;
-    }
-    bool in_means() const { return rays >= kMinRaysForMeans; }
 };
 
 // ---- GPU helpers ---------------------------------------------------------
@@ -294,13 +253,6 @@ double run_optix(OptixPeer& peer, const Ray* d_rays, Hit* d_hits, size_t n, bool
 }
 #endif
 
-double geomean(const std::vector<double>& v) {
-    if (v.empty()) return 0.0;
-    double s = 0;
-    for (double x : v) s += std::log(x);
-    return std::exp(s / double(v.size()));
-}
-
 int usage() {
     std::fprintf(stderr,
                  "usage: cwbvh_gpu_check [--width W] [--height H] [--repeat R] [--views CATALOG] [--csv PATH]\n"
@@ -317,18 +269,6 @@ int usage() {
                  "  the two-level kernel then traces the flattened file's rays (compile time key: instanced:NAME).\n"
                  "  exit: 0 pass or SKIPPED (no CUDA device), 1 mismatch, 2 usage/IO/CUDA error or unusable device\n");
     return 2;
-}
-
-const char* kind_name(int bounce) {
-    static const char* const k[] = {"primary", "diffuse1", "diffuse2", "diffuse3", "diffuse4"};
-    return k[bounce];
-}
-
-std::string fmt(bool ok, const char* f, double v) {
-    if (!ok) return "-";
-    char b[32];
-    std::snprintf(b, sizeof b, f, v);
-    return b;
 }
 
 void print_table(const std::vector<Row>& rows) {
@@ -400,21 +340,6 @@ void print_scene_table(const std::vector<Scene>& scenes) {
     }
 }
 
-std::string describe(const FlatCompare& c, bool any) {
-    char b[320];
-    if (any)
-        std::snprintf(b, sizeof b, "%llu disagreeing (hit/miss %llu; edge %llu)", (unsigned long long)c.disagreeing,
-                      (unsigned long long)c.hit_vs_miss, (unsigned long long)c.edge);
-    else
-        std::snprintf(b, sizeof b,
-                      "%llu disagreeing (hit/miss %llu, t %llu, source %llu); edge %llu, t within rounding %llu, "
-                      "ties %llu, worst t %.2g rel",
-                      (unsigned long long)c.disagreeing, (unsigned long long)c.hit_vs_miss,
-                      (unsigned long long)c.t_far, (unsigned long long)c.source, (unsigned long long)c.edge,
-                      (unsigned long long)c.t_rounding, (unsigned long long)c.ties, c.worst_rel);
-    return b;
-}
-
 /// The two-level rows: the instanced file's kernel beside the flattened file's CWBVH
 /// kernel on the same rays, and the comparisons.
 void print_two_level_table(const std::vector<Row>& rows) {
@@ -456,203 +381,6 @@ void print_two_level_table(const std::vector<Row>& rows) {
                 "1e-5 of an edge), round (t beyond 1e-5 but within 16 u of the scene extent along the normal), ties "
                 "(another source at a close t)\n",
                 gpu ? "GPU kernels' hits" : "CPU references");
-}
-
-/// Geometric means over the two-level scenes (a scene: the geometric mean over its
-/// views) of the two-level kernel's Mrays/s and of its speed over the flattened file's
-/// CWBVH kernel, closest hit (issue 19: at least 0.8x).
-void print_two_level_summary(const std::vector<Row>& rows) {
-    std::map<std::string, std::map<std::string, std::map<int, const Row*>>> by;
-    std::vector<std::string> scene_order;
-    FlatCompare flat_all;
-    uint64_t mis = 0, near = 0;
-    bool present = false, gpu = false;
-    for (const Row& r : rows) {
-        if (!r.tl.present) continue;
-        present = true;
-        gpu = gpu || r.tl.k.ran;
-        flat_all += r.tl.flat;
-        mis += r.tl.k.mismatches;
-        near += r.tl.near;
-        if (r.query != "closest" || !r.tl.k.ran || !r.k[kCw].ran) continue;
-        if (!by.count(r.scene)) scene_order.push_back(r.scene);
-        by[r.scene][r.view][r.bounce] = &r;
-    }
-    if (!present) return;
-    if (!gpu) {
-        std::printf("\ntwo-level vs flattened hits (CPU references), all rays and queries: %s\n",
-                    describe(flat_all, false).c_str());
-        return;
-    }
-    std::printf("\nTwo-level / flattened CWBVH kernel, geometric mean over %zu scene(s) (each scene: geometric mean "
-                "over its views), closest hit, same rays; target >= 0.80x (issue 19):\n",
-                scene_order.size());
-    std::printf("%-14s %8s %15s %14s %13s %13s\n", "rays", "scenes", "2-level Mrays/s", "flat CW Mr/s",
-                "2-level/flat", "sets left out");
-    std::map<std::string, std::vector<double>> all;  // scene -> every in-means ratio
-    for (int set = 0; set <= kBounces + 1; ++set) {
-        std::vector<double> mr, cw, ratio;
-        size_t left_out = 0;
-        for (const std::string& s : scene_order) {
-            std::vector<double> vmr, vcw, vratio;
-            for (const auto& [view, bounces] : by[s]) {
-                double ms2 = 0, ms1 = 0, n = 0;
-                bool ok = true;
-                for (int b = (set == kBounces + 1 ? 1 : set); b <= (set == kBounces + 1 ? kBounces : set); ++b) {
-                    const auto it = bounces.find(b);
-                    if (it == bounces.end()) {
-                        ok = false;
-                        break;
-                    }
-                    ms2 += it->second->tl.k.ms;
-                    ms1 += it->second->k[kCw].ms;
-                    n += double(it->second->rays);
-                }
-                if (!ok || n == 0 || ms2 <= 0 || ms1 <= 0) continue;
-                if (n < double(kMinRaysForMeans)) {
-                    ++left_out;
-                    continue;
-                }
-                vmr.push_back(n / (ms2 * 1e3));
-                vcw.push_back(n / (ms1 * 1e3));
-                vratio.push_back(ms1 / ms2);
-                if (set <= kBounces) all[s].push_back(ms1 / ms2);
-            }
-            if (!vmr.empty()) {
-                mr.push_back(geomean(vmr));
-                cw.push_back(geomean(vcw));
-                ratio.push_back(geomean(vratio));
-            }
-        }
-        const char* name = set <= kBounces ? kind_name(set) : "diffuse1-4";
-        std::printf("%-14s %8zu %15s %14s %13s %13zu\n", name, mr.size(), fmt(!mr.empty(), "%.1f", geomean(mr)).c_str(),
-                    fmt(!cw.empty(), "%.1f", geomean(cw)).c_str(), fmt(!ratio.empty(), "%.2fx", geomean(ratio)).c_str(),
-                    left_out);
-    }
-    std::vector<double> per_scene;
-    for (const auto& [scene, v] : all) per_scene.push_back(geomean(v));
-    std::printf("two-level / flattened over every ray set in the means (primary, diffuse 1-4; each scene weighted "
-                "equally): %s (target >= 0.80x)\n",
-                fmt(!per_scene.empty(), "%.2fx", geomean(per_scene)).c_str());
-    std::printf("two-level vs flattened hits (GPU kernels), all rays and queries: %s\n",
-                describe(flat_all, false).c_str());
-    std::printf("two-level kernel vs trace_two_level_cpu: %llu rays not bit for bit (%llu of them same prim and "
-                "instance, t within %u ulps)\n",
-                (unsigned long long)mis, (unsigned long long)near, kKernelUlpBound);
-}
-
-/// The inline query (query.h, one thread per ray) beside the CWBVH kernel (persistent
-/// warps, dynamic fetch, shared-memory stack, postponing) on the same rays: geometric
-/// means as print_summary's (a scene: the geometric mean over its views), closest hit.
-void print_inline_summary(const std::vector<Row>& rows) {
-    std::map<std::string, std::map<std::string, std::map<int, const Row*>>> by;
-    std::vector<std::string> scene_order;
-    uint64_t mis = 0, not_ok = 0;
-    bool ran = false;
-    for (const Row& r : rows) {
-        if (!r.inl.ran) continue;
-        ran = true;
-        mis += r.inl.mismatches;
-        not_ok += r.inl.overflows;
-        if (r.query != "closest" || !r.k[kCw].ran) continue;
-        if (!by.count(r.scene)) scene_order.push_back(r.scene);
-        by[r.scene][r.view][r.bounce] = &r;
-    }
-    if (!ran) return;
-    std::printf("\nInline query (cwbvh/kernels/query.h: one thread per ray, its own stack in local memory, "
-                "compiled for single-level scenes) / CWBVH kernel, geometric mean over %zu scene(s), closest hit:\n",
-                scene_order.size());
-    std::printf("%-14s %8s %15s %14s %13s %13s\n", "rays", "scenes", "inline Mrays/s", "CWBVH Mrays/s",
-                "inline/CWBVH", "sets left out");
-    for (int set = 0; set <= kBounces; ++set) {
-        std::vector<double> mr, cw, ratio;
-        size_t left_out = 0;
-        for (const std::string& s : scene_order) {
-            std::vector<double> vmr, vcw, vratio;
-            for (const auto& [view, bounces] : by[s]) {
-                const auto it = bounces.find(set);
-                if (it == bounces.end() || it->second->inl.ms <= 0 || it->second->k[kCw].ms <= 0) continue;
-                if (!it->second->in_means()) {
-                    ++left_out;
-                    continue;
-                }
-                vmr.push_back(it->second->inl.mrays);
-                vcw.push_back(it->second->k[kCw].mrays);
-                vratio.push_back(it->second->inl.mrays / it->second->k[kCw].mrays);
-            }
-            if (!vmr.empty()) {
-                mr.push_back(geomean(vmr));
-                cw.push_back(geomean(vcw));
-                ratio.push_back(geomean(vratio));
-            }
-        }
-        std::printf("%-14s %8zu %15s %14s %13s %13zu\n", kind_name(set), mr.size(),
-                    fmt(!mr.empty(), "%.1f", geomean(mr)).c_str(), fmt(!cw.empty(), "%.1f", geomean(cw)).c_str(),
-                    fmt(!ratio.empty(), "%.2fx", geomean(ratio)).c_str(), left_out);
-    }
-    std::printf("inline query vs the CPU reference, all rays and queries: %llu rays not bit for bit, %llu overflows "
-                "or bad indices (each a failure)\n",
-                (unsigned long long)mis, (unsigned long long)not_ok);
-}
-
-/// Geometric means over scenes (a scene = the geometric mean over its views), closest hit.
-void print_summary(const std::vector<Row>& rows) {
-    // key: scene -> view -> bounce -> row (closest hit only).
-    std::map<std::string, std::map<std::string, std::map<int, const Row*>>> by;
-    std::vector<std::string> scene_order;
-    for (const Row& r : rows) {
-        if (r.query != "closest") continue;
-        if (!by.count(r.scene)) scene_order.push_back(r.scene);
-        by[r.scene][r.view][r.bounce] = &r;
-    }
-    std::printf("\nGeometric mean over %zu scene(s) (each scene: geometric mean over its views), closest hit; "
-                "ray sets of fewer than %zu rays left out:\n",
-                scene_order.size(), kMinRaysForMeans);
-    std::printf("%-14s %8s %14s %10s %13s %11s %13s\n", "rays", "scenes", "CWBVH Mrays/s", "CWBVH/BVH2",
-                "OptiX Mrays/s", "CWBVH/OptiX", "sets left out");
-    for (int set = 0; set <= kBounces + 1; ++set) {  // 0..4 per bounce, 5 = diffuse 1-4 together
-        std::vector<double> mr, ratio, ox_mr, ox_ratio;
-        size_t left_out = 0;
-        for (const std::string& s : scene_order) {
-            std::vector<double> vmr, vratio, vox_mr, vox_ratio;
-            for (const auto& [view, bounces] : by[s]) {
-                double ms[kKernels] = {0, 0, 0}, n = 0;
-                bool ok = true, have[kKernels] = {true, true, true};
-                for (int b = (set == kBounces + 1 ? 1 : set); b <= (set == kBounces + 1 ? kBounces : set); ++b) {
-                    const auto it = bounces.find(b);
-                    if (it == bounces.end() || !it->second->k[kCw].ran) {
-                        ok = false;
-                        break;
-                    }
-                    for (int k = 0; k < kKernels; ++k) {
-                        ms[k] += it->second->k[k].ms;
-                        have[k] = have[k] && it->second->k[k].ran;
-                    }
-                    n += double(it->second->rays);
-                }
-                if (!ok || n == 0 || ms[kCw] <= 0) continue;
-                if (n < double(kMinRaysForMeans)) {
-                    ++left_out;
-                    continue;
-                }
-                vmr.push_back(n / (ms[kCw] * 1e3));
-                if (have[kB2] && ms[kB2] > 0) vratio.push_back(ms[kB2] / ms[kCw]);
-                if (have[kOx] && ms[kOx] > 0) {
-                    vox_mr.push_back(n / (ms[kOx] * 1e3));
-                    vox_ratio.push_back(ms[kOx] / ms[kCw]);
-                }
-            }
-            if (!vmr.empty()) mr.push_back(geomean(vmr));
-            if (!vratio.empty()) ratio.push_back(geomean(vratio));
-            if (!vox_mr.empty()) ox_mr.push_back(geomean(vox_mr));
-            if (!vox_ratio.empty()) ox_ratio.push_back(geomean(vox_ratio));
-        }
-        const char* name = set <= kBounces ? kind_name(set) : "diffuse1-4";
-        std::printf("%-14s %8zu %14s %10s %13s %11s %13zu\n", name, mr.size(),
-                    fmt(!mr.empty(), "%.1f", geomean(mr)).c_str(), fmt(!ratio.empty(), "%.2fx", geomean(ratio)).c_str(),
-                    fmt(!ox_mr.empty(), "%.1f", geomean(ox_mr)).c_str(),
-                    fmt(!ox_ratio.empty(), "%.2fx", geomean(ox_ratio)).c_str(), left_out);
-    }
 }
 
 /// A CSV number cell: empty where the kernel did not run, else %.6g (both CSV writers).

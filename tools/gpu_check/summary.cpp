@@ -1,0 +1,236 @@
+// cwbvh_gpu_check's geometric-mean summaries: see summary.h.
+#include "summary.h"
+
+#include <cstdio>
+
+namespace cwbvh::gpu_check {
+
+double geomean(const std::vector<double>& v) {
+    if (v.empty()) return 0.0;
+    double s = 0;
+    for (double x : v) s += std::log(x);
+    return std::exp(s / double(v.size()));
+}
+
+const char* kind_name(int set) {
+    static const char* const k[] = {"primary", "diffuse1", "diffuse2", "diffuse3", "diffuse4", "diffuse1-4"};
+    static_assert(sizeof k / sizeof k[0] == kDiffuseAll + 1);
+    return k[set];
+}
+
+std::string fmt(bool ok, const char* f, double v) {
+    if (!ok) return "-";
+    char b[32];
+    std::snprintf(b, sizeof b, f, v);
+    return b;
+}
+
+std::string describe(const FlatCompare& c, bool any) {
+    char b[320];
+    if (any)
+        std::snprintf(b, sizeof b, "%llu disagreeing (hit/miss %llu; edge %llu)", (unsigned long long)c.disagreeing,
+                      (unsigned long long)c.hit_vs_miss, (unsigned long long)c.edge);
+    else
+        std::snprintf(b, sizeof b,
+                      "%llu disagreeing (hit/miss %llu, t %llu, source %llu); edge %llu, t within rounding %llu, "
+                      "ties %llu, worst t %.2g rel",
+                      (unsigned long long)c.disagreeing, (unsigned long long)c.hit_vs_miss,
+                      (unsigned long long)c.t_far, (unsigned long long)c.source, (unsigned long long)c.edge,
+                      (unsigned long long)c.t_rounding, (unsigned long long)c.ties, c.worst_rel);
+    return b;
+}
+
+namespace {
+
+/// Closest-hit rows that pass `keep`, by scene (first-seen order), view and bounce.
+struct RowIndex {
+    std::vector<std::string> scenes;
+    std::map<std::string, std::map<std::string, std::map<int, const Row*>>> by;
+    template <class Keep>
+    RowIndex(const std::vector<Row>& rows, Keep keep) {
+        for (const Row& r : rows) {
+            if (r.query != "closest" || !keep(r)) continue;
+            if (!by.count(r.scene)) scenes.push_back(r.scene);
+            by[r.scene][r.view][r.bounce] = &r;
+        }
+    }
+};
+
+/// The one reduction behind every summary (summary.h). `figures(rows, n)`: the view's
+/// rows of the set's bounces (all present) and their rays; std::nullopt skips the view,
+/// a figure <= 0 is absent for that view.
+template <size_t N, class Figures>
+SetMeans<N> set_means(const RowIndex& index, int set, Figures figures) {
+    SetMeans<N> out;
+    std::array<std::vector<double>, N> over_scenes;
+    const int first = set == kDiffuseAll ? 1 : set, last = set == kDiffuseAll ? kBounces : set;
+    for (const std::string& scene : index.scenes) {
+        std::array<std::vector<double>, N> values;
+        for (const auto& [view, bounces] : index.by.at(scene)) {
+            std::vector<const Row*> rs;
+            for (int b = first; b <= last; ++b) {
+                const auto it = bounces.find(b);
+                if (it == bounces.end()) break;
+                rs.push_back(it->second);
+            }
+            if (rs.size() != size_t(last - first + 1)) continue;
+            double n = 0;
+            for (const Row* r : rs) n += double(r->rays);
+            if (n == 0) continue;
+            const std::optional<std::array<double, N>> f = figures(rs, n);
+            if (!f) continue;
+            if (n < double(kMinRaysForMeans)) {
+                ++out.left_out;
+                continue;
+            }
+            for (size_t i = 0; i < N; ++i)
+                if ((*f)[i] > 0) values[i].push_back((*f)[i]);
+        }
+        for (size_t i = 0; i < N; ++i) {
+            if (values[i].empty()) continue;
+            over_scenes[i].push_back(geomean(values[i]));
+            out.views[i][scene] = std::move(values[i]);
+        }
+    }
+    for (size_t i = 0; i < N; ++i) out.mean[i] = Mean{over_scenes[i].size(), geomean(over_scenes[i])};
+    return out;
+}
+
+/// The summed kernel time of `rs` for the result `pick` selects.
+template <class Pick>
+double sum_ms(const std::vector<const Row*>& rs, Pick pick) {
+    double ms = 0;
+    for (const Row* r : rs) ms += pick(*r).ms;
+    return ms;
+}
+
+std::string mean_cell(const Mean& m, const char* f) { return fmt(m.scenes > 0, f, m.value); }
+
+}  // namespace
+
+SetMeans<4> kernel_means(const std::vector<Row>& rows, int set) {
+    const RowIndex index(rows, [](const Row&) { return true; });
+    return set_means<4>(index, set, [](const std::vector<const Row*>& rs, double n) -> std::optional<std::array<double, 4>> {
+        double ms[kKernels] = {0, 0, 0};
+        bool have[kKernels] = {true, true, true};
+        for (const Row* r : rs) {
+            if (!r->k[kCw].ran) return std::nullopt;
+            for (int k = 0; k < kKernels; ++k) {
+                ms[k] += r->k[k].ms;
+                have[k] = have[k] && r->k[k].ran;
+            }
+        }
+        if (ms[kCw] <= 0) return std::nullopt;
+        const bool b2 = have[kB2] && ms[kB2] > 0, ox = have[kOx] && ms[kOx] > 0;
+        return std::array<double, 4>{n / (ms[kCw] * 1e3), b2 ? ms[kB2] / ms[kCw] : 0.0,
+                                     ox ? n / (ms[kOx] * 1e3) : 0.0, ox ? ms[kOx] / ms[kCw] : 0.0};
+    });
+}
+
+SetMeans<3> two_level_means(const std::vector<Row>& rows, int set) {
+    const RowIndex index(rows, [](const Row& r) { return r.tl.present && r.tl.k.ran && r.k[kCw].ran; });
+    return set_means<3>(index, set, [](const std::vector<const Row*>& rs, double n) -> std::optional<std::array<double, 3>> {
+        const double ms2 = sum_ms(rs, [](const Row& r) -> const KernelResult& { return r.tl.k; });
+        const double ms1 = sum_ms(rs, [](const Row& r) -> const KernelResult& { return r.k[kCw]; });
+        if (ms2 <= 0 || ms1 <= 0) return std::nullopt;
+        return std::array<double, 3>{n / (ms2 * 1e3), n / (ms1 * 1e3), ms1 / ms2};
+    });
+}
+
+SetMeans<3> inline_means(const std::vector<Row>& rows, int set) {
+    const RowIndex index(rows, [](const Row& r) { return r.inl.ran && r.k[kCw].ran; });
+    return set_means<3>(index, set, [](const std::vector<const Row*>& rs, double n) -> std::optional<std::array<double, 3>> {
+        const double msi = sum_ms(rs, [](const Row& r) -> const KernelResult& { return r.inl; });
+        const double msc = sum_ms(rs, [](const Row& r) -> const KernelResult& { return r.k[kCw]; });
+        if (msi <= 0 || msc <= 0) return std::nullopt;
+        return std::array<double, 3>{n / (msi * 1e3), n / (msc * 1e3), msc / msi};
+    });
+}
+
+void print_summary(const std::vector<Row>& rows) {
+    std::printf("\nGeometric mean over %zu scene(s) (each scene: geometric mean over its views), closest hit; "
+                "ray sets of fewer than %zu rays left out:\n",
+                RowIndex(rows, [](const Row&) { return true; }).scenes.size(), kMinRaysForMeans);
+    std::printf("%-14s %8s %14s %10s %13s %11s %13s\n", "rays", "scenes", "CWBVH Mrays/s", "CWBVH/BVH2",
+                "OptiX Mrays/s", "CWBVH/OptiX", "sets left out");
+    for (int set = 0; set <= kDiffuseAll; ++set) {
+        const SetMeans<4> m = kernel_means(rows, set);
+        std::printf("%-14s %8zu %14s %10s %13s %11s %13zu\n", kind_name(set), m.mean[kCwbvhMrays].scenes,
+                    mean_cell(m.mean[kCwbvhMrays], "%.1f").c_str(), mean_cell(m.mean[kOverBvh2], "%.2fx").c_str(),
+                    mean_cell(m.mean[kOptixMrays], "%.1f").c_str(), mean_cell(m.mean[kOverOptix], "%.2fx").c_str(),
+                    m.left_out);
+    }
+}
+
+void print_two_level_summary(const std::vector<Row>& rows) {
+    FlatCompare flat_all;
+    uint64_t mis = 0, near = 0;
+    bool present = false, gpu = false;
+    for (const Row& r : rows) {
+        if (!r.tl.present) continue;
+        present = true;
+        gpu = gpu || r.tl.k.ran;
+        flat_all += r.tl.flat;
+        mis += r.tl.k.mismatches;
+        near += r.tl.near;
+    }
+    if (!present) return;
+    if (!gpu) {
+        std::printf("\ntwo-level vs flattened hits (CPU references), all rays and queries: %s\n",
+                    describe(flat_all, false).c_str());
+        return;
+    }
+    std::printf("\nTwo-level / flattened CWBVH kernel, geometric mean over %zu scene(s) (each scene: geometric mean "
+                "over its views), closest hit, same rays; target >= 0.80x (issue 19):\n",
+                RowIndex(rows, [](const Row& r) { return r.tl.present && r.tl.k.ran && r.k[kCw].ran; }).scenes.size());
+    std::printf("%-14s %8s %15s %14s %13s %13s\n", "rays", "scenes", "2-level Mrays/s", "flat CW Mr/s",
+                "2-level/flat", "sets left out");
+    std::map<std::string, std::vector<double>> all;  // scene -> every in-means ratio of the single bounces
+    for (int set = 0; set <= kDiffuseAll; ++set) {
+        const SetMeans<3> m = two_level_means(rows, set);
+        if (set < kDiffuseAll)
+            for (const auto& [scene, v] : m.views[kTwoOverFlat]) all[scene].insert(all[scene].end(), v.begin(), v.end());
+        std::printf("%-14s %8zu %15s %14s %13s %13zu\n", kind_name(set), m.mean[kTwoLevelMrays].scenes,
+                    mean_cell(m.mean[kTwoLevelMrays], "%.1f").c_str(), mean_cell(m.mean[kFlatMrays], "%.1f").c_str(),
+                    mean_cell(m.mean[kTwoOverFlat], "%.2fx").c_str(), m.left_out);
+    }
+    std::vector<double> per_scene;
+    for (const auto& [scene, v] : all) per_scene.push_back(geomean(v));
+    std::printf("two-level / flattened over every ray set in the means (primary, diffuse 1-4; each scene weighted "
+                "equally): %s (target >= 0.80x)\n",
+                fmt(!per_scene.empty(), "%.2fx", geomean(per_scene)).c_str());
+    std::printf("two-level vs flattened hits (GPU kernels), all rays and queries: %s\n",
+                describe(flat_all, false).c_str());
+    std::printf("two-level kernel vs trace_two_level_cpu: %llu rays not bit for bit (%llu of them same prim and "
+                "instance, t within %u ulps)\n",
+                (unsigned long long)mis, (unsigned long long)near, kKernelUlpBound);
+}
+
+void print_inline_summary(const std::vector<Row>& rows) {
+    uint64_t mis = 0, not_ok = 0;
+    bool ran = false;
+    for (const Row& r : rows) {
+        if (!r.inl.ran) continue;
+        ran = true;
+        mis += r.inl.mismatches;
+        not_ok += r.inl.overflows;
+    }
+    if (!ran) return;
+    std::printf("\nInline query (cwbvh/kernels/query.h: one thread per ray, its own stack in local memory, "
+                "compiled for single-level scenes) / CWBVH kernel, geometric mean over %zu scene(s), closest hit:\n",
+                RowIndex(rows, [](const Row& r) { return r.inl.ran && r.k[kCw].ran; }).scenes.size());
+    std::printf("%-14s %8s %15s %14s %13s %13s\n", "rays", "scenes", "inline Mrays/s", "CWBVH Mrays/s",
+                "inline/CWBVH", "sets left out");
+    for (int set = 0; set <= kDiffuseAll; ++set) {
+        const SetMeans<3> m = inline_means(rows, set);
+        std::printf("%-14s %8zu %15s %14s %13s %13zu\n", kind_name(set), m.mean[kInlineMrays].scenes,
+                    mean_cell(m.mean[kInlineMrays], "%.1f").c_str(),
+                    mean_cell(m.mean[kInlineCwbvhMrays], "%.1f").c_str(),
+                    mean_cell(m.mean[kInlineOverCwbvh], "%.2fx").c_str(), m.left_out);
+    }
+    std::printf("inline query vs the CPU reference, all rays and queries: %llu rays not bit for bit, %llu overflows "
+                "or bad indices (each a failure)\n",
+                (unsigned long long)mis, (unsigned long long)not_ok);
+}
+
+}  // namespace cwbvh::gpu_check
