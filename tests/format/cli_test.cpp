@@ -69,5 +69,23 @@ TEST(Cli, UsageErrors) {
     EXPECT_EQ(run("--help").code, 0);
 }
 
+// `cwbvh VERB --help` prints the verb's usage and options to stdout and exits 0 (it was
+// "unknown option --help", exit 2); `cwbvh --help` lists every verb with its options.
+TEST(Cli, VerbHelp) {
+    const ToolRun all = run("--help");
+    EXPECT_NE(all.out.find("validate FILE... [--deep] [--no-checksums]"), std::string::npos) << all.out;
+    for (const std::string verb : {"info", "validate", "rays", "trace", "model", "render"}) {
+        for (const char* flag : {" --help", " -h"}) {
+            const ToolRun r = run(verb + flag);
+            EXPECT_EQ(r.code, 0) << verb << r.out;
+            EXPECT_EQ(r.out.rfind("usage: cwbvh " + verb + " ", 0), 0u) << r.out;
+            EXPECT_GT(test::count_lines(r.out), 2u) << r.out;
+            EXPECT_NE(all.out.find("  cwbvh " + verb + " "), std::string::npos) << verb;
+        }
+    }
+    // --help among other arguments is an unknown option, as before.
+    EXPECT_EQ(run("info x.cwbvh --help").code, 2);
+}
+
 }  // namespace
 }  // namespace cwbvh

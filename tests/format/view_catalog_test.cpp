@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -346,6 +348,37 @@ TEST(RaysView, TheShippedCatalogIsTheDefault) {
     EXPECT_NE(r.out.find("view: sponza_dabrovic nave (first of "), std::string::npos) << r.out;
     EXPECT_NE(r.out.find(std::string(CWBVH_SOURCE_DIR) + "/views/catalog.txt:"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("): -12,3,0,10,5,0,70\n"), std::string::npos) << r.out;
+}
+
+// `cwbvh render` takes its camera by the same rule (camera_choice.h): the scene's first
+// catalog view by default (inside Sponza and the game levels, where a camera framing the
+// bounds would look at the sky box from outside), --view, --camera, and the same errors.
+TEST(RenderView, RendersFromTheCatalogLikeRays) {
+    const std::string file = test::write_temp("sponza_dabrovic.cwbvh", test::synthetic_file());
+    const std::string png = test::temp_dir() + "/render_view.png";
+    ToolRun r = run_tool("render " + file + " --width 4 --height 4 -o " + png);
+    EXPECT_EQ(r.code, 0) << r.out;
+    EXPECT_NE(r.out.find("view: sponza_dabrovic nave (first of "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("): -12,3,0,10,5,0,70\n"), std::string::npos) << r.out;
+    const std::string text = "cwbvh-views 1\nsponza_dabrovic a 1,2,3,0,0,0,40\nsponza_dabrovic b 4,5,6,0,0,0,40\n";
+    const std::string cat = test::write_temp("render_views.txt", {text.begin(), text.end()});
+    r = run_tool("render " + file + " --width 4 --height 4 --views " + cat + " --view b -o " + png);
+    EXPECT_EQ(r.code, 0) << r.out;
+    EXPECT_NE(r.out.find("view: sponza_dabrovic b (" + cat + ":3): 4,5,6,0,0,0,40"), std::string::npos) << r.out;
+    r = run_tool("render " + file + " --width 4 --height 4 --scene elsewhere -o " + png);
+    EXPECT_EQ(r.code, 0) << r.out;
+    EXPECT_NE(r.out.find("view: default camera (scene 'elsewhere' not in "), std::string::npos) << r.out;
+    for (const std::string bad : {" --view 9", " --view b --camera 1,2,3,0,0,0,40", " --view"}) {
+        r = run_tool("render " + file + " --width 4 --height 4 --views " + cat + " -o " + png + bad);
+        EXPECT_EQ(r.code, 2) << bad << ": " << r.out;
+        EXPECT_EQ(lines(r.out), 1u) << r.out;
+        EXPECT_TRUE(starts_with(r.out, "cwbvh: error: render: ")) << r.out;
+    }
+    // The catalog is an input: the image may not overwrite it.
+    r = run_tool("render " + file + " --views " + cat + " -o " + cat);
+    EXPECT_EQ(r.code, 1) << r.out;
+    std::ifstream in(cat, std::ios::binary);
+    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), text);
 }
 
 }  // namespace

@@ -2,14 +2,8 @@
 //                 [--seed S] [--view NAME|N] [--views CATALOG] [--scene KEY]
 //                 [--camera ex,ey,ez,tx,ty,tz,fov] [--threads N] -o RAYS
 // Writes a ray file (spec/rays.md): camera rays, or the diffuse rays of bounce N
-// (the paper's "diffuse" benchmark rays). The camera: --camera when given; else
-// view NAME (or the N-th, 1-based) of the scene in the view catalog
-// (view_catalog.h: --views, else $CWBVH_VIEWS, else the compiled-in views/catalog.txt);
-// else the scene's first catalog view; else, for a scene not in the catalog,
-// default_camera. The scene key is FILE's stem unless --scene gives it. Prints the
-// view used. A bad --view is a usage error (exit 2); an unreadable or malformed
-// catalog is bad input (exit 1), except that a missing compiled-in catalog (neither
-// --views nor $CWBVH_VIEWS given) without --view falls back to the default camera.
+// (the paper's "diffuse" benchmark rays), from the camera of camera_choice.h (--camera,
+// --view, --views, --scene; by default the scene's first catalog view). Prints the view used.
 #include <cstdio>
 #include <cstring>
 #include <string>
@@ -22,7 +16,7 @@
 #include "cwbvh/kernels/ray_gen.h"
 #include "cwbvh/kernels/view_catalog.h"
 #include "cwbvh/loader/loader.h"
-#include "scene_camera.h"
+#include "camera_choice.h"
 #include "cwbvh/kernels/two_level_file.h"
 
 namespace cwbvh::tool {
@@ -35,10 +29,7 @@ int run_rays(int argc, char** argv) {
     const char* out = nullptr;
     int kind = 0;  // 1 primary, 2 diffuse
     uint32_t bounce = 1, width = 1024, height = 1024, seed = 1, threads = 0;
-    const char* camera_text = nullptr;
-    const char* view_text = nullptr;
-    const char* views_path = nullptr;
-    const char* scene_text = nullptr;
+    CameraOptions cam_opts;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         const char* v = nullptr;
@@ -46,7 +37,9 @@ int run_rays(int argc, char** argv) {
             v = option_value(argc, argv, i);
             return parse_u32(v, lo, hi, dst);
         };
-        if (a == "--primary") {
+        if (const int c = cam_opts.parse("rays", argc, argv, i); c != 0) {
+            if (c < 0) return kExitUsage;
+        } else if (a == "--primary") {
             kind = 1;
         } else if (a == "--diffuse") {
             kind = 2;
@@ -60,19 +53,6 @@ int run_rays(int argc, char** argv) {
             if (!need(0, 0xFFFFFFFFu, seed)) return error(kExitUsage, "rays: --seed needs an unsigned 32-bit integer");
         } else if (a == "--threads") {
             if (!need(0, 1024, threads)) return error(kExitUsage, "rays: --threads needs an integer in [0, 1024]");
-        } else if (a == "--camera") {
-            camera_text = option_value(argc, argv, i);
-            if (!camera_text) return error(kExitUsage, "rays: --camera needs a value");
-        } else if (a == "--view") {
-            view_text = option_value(argc, argv, i);
-            if (!view_text || !*view_text)
-                return error(kExitUsage, "rays: --view needs a view name or a 1-based index");
-        } else if (a == "--views") {
-            views_path = option_value(argc, argv, i);
-            if (!views_path || !*views_path) return error(kExitUsage, "rays: --views needs a catalog path");
-        } else if (a == "--scene") {
-            scene_text = option_value(argc, argv, i);
-            if (!scene_text || !*scene_text) return error(kExitUsage, "rays: --scene needs a scene key");
         } else if (a == "-o" || a == "--output") {
             out = option_value(argc, argv, i);
             if (!out) return error(kExitUsage, "rays: -o needs a path");
@@ -85,51 +65,13 @@ int run_rays(int argc, char** argv) {
         }
     }
     if (!path || !out || kind == 0) return error(kExitUsage, usage);
-    if (camera_text && view_text) return error(kExitUsage, "rays: --camera and --view exclude each other");
-
-    // The catalog is an input too (--views, $CWBVH_VIEWS or the compiled-in one).
-    const std::vector<std::string> inputs{path, views_path ? std::string(views_path) : default_view_catalog_path()};
-    if (const Result r = check_output_path(out, inputs); !r.ok()) return error(kExitBadInput, r.message.c_str());
+    if (const Result r = check_output_path(out, cam_opts.inputs(path)); !r.ok())
+        return error(kExitBadInput, r.message.c_str());
     auto file = File::open(path, {true, trace_section_mask(kMaskBounds)});
     if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
     Camera cam;
-    bool default_cam = false;
     std::string view_note;
-    const std::string scene = scene_text ? scene_text : scene_key(path);
-    if (camera_text) {
-        if (const Result r = parse_camera(camera_text, cam); !r.ok())
-            return error(kExitUsage, ("rays: " + r.message).c_str());
-        view_note = "--camera";
-    } else {
-        ViewCatalog catalog;
-        CatalogLoad loaded = CatalogLoad::kError;
-        const Result load = load_view_catalog(views_path ? views_path : "", catalog, loaded);
-        const std::string& err = load.message;
-        if (loaded == CatalogLoad::kError || (loaded == CatalogLoad::kAbsent && view_text)) {
-            return error(kExitBadInput, ("rays: " + err).c_str());
-        } else if (loaded == CatalogLoad::kAbsent) {
-            default_cam = true;
-            view_note = "default camera (no view catalog: " + err + ")";
-        } else if (view_text) {
-            View v;
-            if (const Result r = catalog.find(scene, view_text, v); !r.ok())
-                return error(kExitUsage, ("rays: --view: " + r.message).c_str());
-            cam = v.camera;
-            view_note = scene + " " + v.name + " (" + catalog.source() + ":" + std::to_string(v.line) + ")";
-        } else if (catalog.has_scene(scene)) {
-            const View v = catalog.views_of(scene).front();
-            cam = v.camera;
-            view_note = scene + " " + v.name + " (first of " + std::to_string(catalog.views_of(scene).size()) +
-                        ", " + catalog.source() + ":" + std::to_string(v.line) + ")";
-        } else {
-            default_cam = true;
-            view_note = "default camera (scene '" + scene + "' not in " + catalog.source() + ")";
-        }
-    }
-    if (default_cam) {
-        if (const Result r = scene_camera(*file->bounds(), path, cam); !r.ok())
-            return error(kExitBadInput, r.message.c_str());
-    }
+    if (const int rc = choose_camera("rays", path, *file->bounds(), cam_opts, cam, view_note); rc != 0) return rc;
     std::printf("view: %s: %s\n", view_note.c_str(), format_camera(cam).c_str());
 
     std::vector<Ray> rays = camera_rays(cam, width, height);

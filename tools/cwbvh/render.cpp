@@ -1,6 +1,9 @@
-// cwbvh render FILE -o IMAGE.png [--heatmap] [--width W] [--height H]
-//                   [--camera ex,ey,ez,tx,ty,tz,fov] [--ao N] [--fast] [--threads N]
-// Renders the scene with the CPU reference traversal:
+// cwbvh render FILE -o IMAGE.png [--heatmap] [--width W] [--height H] [--view NAME|N]
+//                   [--views CATALOG] [--scene KEY] [--camera ex,ey,ez,tx,ty,tz,fov]
+//                   [--ao N] [--fast] [--threads N]
+// Renders the scene with the CPU reference traversal, from the camera of camera_choice.h
+// (by default the scene's first catalog view, inside the enclosed scenes; the default
+// camera for a scene not in the catalog). Prints the view used.
 //   default   grey headlight shading |cos(geometric normal, ray)|, optionally
 //             times ambient occlusion (N any-hit rays per pixel, cosine-weighted,
 //             reach 1/8 of the scene diagonal); background is a saturated blue that
@@ -20,9 +23,10 @@
 #include "cwbvh/format/file_io.h"
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/ray_gen.h"
+#include "cwbvh/kernels/view_catalog.h"
 #include "cwbvh/loader/loader.h"
 #include "png_write.h"
-#include "scene_camera.h"
+#include "camera_choice.h"
 #include "cwbvh/kernels/two_level_file.h"
 
 namespace cwbvh::tool {
@@ -43,16 +47,18 @@ void ramp(double x, uint8_t* rgb) {
 
 int run_render(int argc, char** argv) {
     const char* usage =
-        "usage: cwbvh render FILE -o IMAGE.png [--heatmap] [--width W] [--height H] "
-        "[--camera ex,ey,ez,tx,ty,tz,fov] [--ao N] [--fast] [--threads N]";
+        "usage: cwbvh render FILE -o IMAGE.png [--heatmap] [--width W] [--height H] [--view NAME|N] "
+        "[--views CATALOG] [--scene KEY] [--camera ex,ey,ez,tx,ty,tz,fov] [--ao N] [--fast] [--threads N]";
     const char* path = nullptr;
     const char* out = nullptr;
-    const char* camera_text = nullptr;
+    CameraOptions cam_opts;
     bool heatmap = false, fast = false;
     uint32_t width = 800, height = 800, ao = 0, threads = 0;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
-        if (a == "--heatmap") {
+        if (const int c = cam_opts.parse("render", argc, argv, i); c != 0) {
+            if (c < 0) return kExitUsage;
+        } else if (a == "--heatmap") {
             heatmap = true;
         } else if (a == "--fast") {
             fast = true;
@@ -68,9 +74,6 @@ int run_render(int argc, char** argv) {
         } else if (a == "--threads") {
             if (!parse_u32(option_value(argc, argv, i), 0, 1024, threads))
                 return error(kExitUsage, "render: --threads needs an integer in [0, 1024]");
-        } else if (a == "--camera") {
-            if (!(camera_text = option_value(argc, argv, i)))
-                return error(kExitUsage, "render: --camera needs a value");
         } else if (a == "-o" || a == "--output") {
             if (!(out = option_value(argc, argv, i))) return error(kExitUsage, "render: -o needs a path");
         } else if (a.size() > 1 && a[0] == '-') {
@@ -83,18 +86,15 @@ int run_render(int argc, char** argv) {
     }
     if (!path || !out) return error(kExitUsage, usage);
 
-    if (const Result r = check_output_path(out, {path}); !r.ok()) return error(kExitBadInput, r.message.c_str());
+    if (const Result r = check_output_path(out, cam_opts.inputs(path)); !r.ok())
+        return error(kExitBadInput, r.message.c_str());
     auto file = File::open(path, {true, trace_section_mask(kMaskBounds)});
     if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
     const SceneBounds& b = *file->bounds();
     Camera cam;
-    std::string err;
-    if (camera_text) {
-        if (const Result r = parse_camera(camera_text, cam); !r.ok())
-            return error(kExitUsage, ("render: " + r.message).c_str());
-    } else if (const Result r = scene_camera(b, path, cam); !r.ok()) {
-        return error(kExitBadInput, r.message.c_str());
-    }
+    std::string view_note;
+    if (const int rc = choose_camera("render", path, b, cam_opts, cam, view_note); rc != 0) return rc;
+    std::printf("view: %s: %s\n", view_note.c_str(), format_camera(cam).c_str());
 
     const auto nodes = file->nodes();
     const auto tris = file->triangles();
@@ -188,6 +188,7 @@ int run_render(int argc, char** argv) {
         std::printf("shaded: %llu of %zu pixels hit; background (holes) is RGB(%u,%u,%u)\n",
                     (unsigned long long)s.hits, rays.size(), kBackground[0], kBackground[1], kBackground[2]);
     }
+    std::string err;
     if (!write_png_rgb(out, rgb.data(), width, height, err)) return error(kExitBadInput, err.c_str());
     std::printf("%s: %ux%u%s, trace %.3f s -> %s\n", path, width, height,
                 two_level ? (", two-level: " + std::to_string(two.instance_count) + " instances of " +
