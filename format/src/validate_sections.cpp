@@ -205,7 +205,10 @@ Result check_indices(const FileLayout& layout, std::span<const uint8_t> payload,
 }
 
 Result check_source_names(std::span<const uint8_t> payload) {
-    if (!payload.empty() && payload.back() != 0)
+    // Empty: no name, and no final NUL (3.7); PMAP's inputs, which rule 5301 skips for a
+    // broken SRCN, would name nothing.
+    if (payload.empty()) return fail(rule::kNamesTerminator, "section SRCN: empty (no name, no final NUL)");
+    if (payload.back() != 0)
         return fail(rule::kNamesTerminator, "section SRCN: last name is not NUL-terminated");
     return Result::success();
 }

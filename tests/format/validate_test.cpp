@@ -286,6 +286,18 @@ TEST(Validate, OtherSectionContent) {
     g = f;
     test::edit_element<char>(g, kSectionSourceNames, 9, [](char& c) { c = 'x'; });
     EXPECT_RULE(check(g), rule::kNamesTerminator);
+    // An empty SRCN does not end with a NUL either (3.7): no names, so a PMAP `input` of 0
+    // would name nothing (the names become zero padding; the entry says 0 bytes).
+    g = f;
+    {
+        const uint32_t k = test::find_entry(g, kSectionSourceNames);
+        SectionEntry e = test::entry(g, k);
+        std::memset(g.data() + e.offset, 0, e.size);
+        e.size = e.element_count = 0;
+        test::set_entry(g, k, e);
+        test::reseal(g);
+    }
+    EXPECT_RULE(check(g), rule::kNamesTerminator);
 }
 
 /// A file whose binary BVH is a BV2L section (leaf ranges of up to 3 records).

@@ -193,6 +193,10 @@ struct SourceRef {
     uint32_t triangle;   ///< triangle index in that primitive (after triangulation)
 };
 static_assert(sizeof(SourceRef) == 16);
+static_assert(offsetof(SourceRef, input) == 0);
+static_assert(offsetof(SourceRef, mesh) == 4);
+static_assert(offsetof(SourceRef, primitive) == 8);
+static_assert(offsetof(SourceRef, triangle) == 12);
 
 // ---------------------------------------------------------------------------
 // BNDS: scene bounds
@@ -203,6 +207,8 @@ struct SceneBounds {
     float hi[3];
 };
 static_assert(sizeof(SceneBounds) == 24);
+static_assert(offsetof(SceneBounds, lo) == 0);
+static_assert(offsetof(SceneBounds, hi) == 12);
 
 // ---------------------------------------------------------------------------
 // BVH2 / BV2L: binary BVH nodes in the layout of Aila, Laine & Karras's kernels
@@ -225,8 +231,18 @@ struct Bvh2Node {
     uint32_t leaf_count[2];  ///< BV2L: TRIS records of a leaf child, 0 for an internal one; BVH2: 0
 };
 static_assert(sizeof(Bvh2Node) == 64);
+static_assert(offsetof(Bvh2Node, c0_lo_x) == 0);
+static_assert(offsetof(Bvh2Node, c0_hi_x) == 4);
+static_assert(offsetof(Bvh2Node, c0_lo_y) == 8);
+static_assert(offsetof(Bvh2Node, c0_hi_y) == 12);
 static_assert(offsetof(Bvh2Node, c1_lo_x) == 16);
+static_assert(offsetof(Bvh2Node, c1_hi_x) == 20);
+static_assert(offsetof(Bvh2Node, c1_lo_y) == 24);
+static_assert(offsetof(Bvh2Node, c1_hi_y) == 28);
 static_assert(offsetof(Bvh2Node, c0_lo_z) == 32);
+static_assert(offsetof(Bvh2Node, c0_hi_z) == 36);
+static_assert(offsetof(Bvh2Node, c1_lo_z) == 40);
+static_assert(offsetof(Bvh2Node, c1_hi_z) == 44);
 static_assert(offsetof(Bvh2Node, child) == 48);
 static_assert(offsetof(Bvh2Node, leaf_count) == 56);
 
@@ -265,8 +281,23 @@ struct BuildInfo {
     uint8_t reserved[144];        ///< must be 0
 };
 static_assert(sizeof(BuildInfo) == 256);
+static_assert(offsetof(BuildInfo, builder) == 0);
+static_assert(offsetof(BuildInfo, collapse) == 4);
+static_assert(offsetof(BuildInfo, split_alpha) == 8);
+static_assert(offsetof(BuildInfo, cost_node) == 12);
+static_assert(offsetof(BuildInfo, cost_prim) == 16);
+static_assert(offsetof(BuildInfo, max_leaf_triangles) == 20);
 static_assert(offsetof(BuildInfo, input_triangles) == 24);
+static_assert(offsetof(BuildInfo, dropped_nonfinite) == 32);
+static_assert(offsetof(BuildInfo, dropped_degenerate) == 40);
+static_assert(offsetof(BuildInfo, skipped_primitives) == 48);
+static_assert(offsetof(BuildInfo, triangles) == 56);
+static_assert(offsetof(BuildInfo, references) == 64);
+static_assert(offsetof(BuildInfo, binary_nodes) == 72);
+static_assert(offsetof(BuildInfo, wide_nodes) == 80);
 static_assert(offsetof(BuildInfo, sah_binary) == 88);
+static_assert(offsetof(BuildInfo, sah_wide) == 96);
+static_assert(offsetof(BuildInfo, avg_children) == 104);
 static_assert(offsetof(BuildInfo, reserved) == 112);
 
 // ---------------------------------------------------------------------------
@@ -294,6 +325,10 @@ struct MeshRecord {
 };
 static_assert(sizeof(MeshRecord) == 64);
 static_assert(offsetof(MeshRecord, node_first) == 0);
+static_assert(offsetof(MeshRecord, node_count) == 4);
+static_assert(offsetof(MeshRecord, tri_first) == 8);
+static_assert(offsetof(MeshRecord, tri_count) == 12);
+static_assert(offsetof(MeshRecord, prim_first) == 16);
 static_assert(offsetof(MeshRecord, prim_count) == 20);
 static_assert(offsetof(MeshRecord, lo) == 24);
 static_assert(offsetof(MeshRecord, hi) == 36);
