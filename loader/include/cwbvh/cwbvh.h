@@ -8,7 +8,7 @@
  * handle must still be closed. Different handles may be used from different
  * threads; one handle is read-only after open and may be shared.
  *
- * A later cwbvh_device_upload(const cwbvh_file*, ...) builds on the section
+ * cwbvh_device_upload (cwbvh_device.h, CUDA builds) builds on the section
  * accessors below (pointer + byte size per section). */
 #ifndef CWBVH_CWBVH_H
 #define CWBVH_CWBVH_H
