@@ -53,7 +53,8 @@ def compile(inputs, output, threads=None, progress=None, **options):  # noqa: A0
     inputs: a path or a list of paths. threads: worker threads (None: all cores; the file is the
     same for any count). options: cwbvhc's options with '_' for '-': builder ('sbvh' | 'embree'),
     collapse ('optimal' | 'greedy'), split_alpha, max_reference_growth, collapse_cost_prim,
-    keep_sbvh, keep_mesh, verify, flatten. flatten=False (the default, as cwbvhc) keeps glTF
+    keep_sbvh, keep_mesh, verify, flatten, allow_parent_uris (glTF buffer URIs with '..' may read
+    outside the input's folder; refused by default). flatten=False (the default, as cwbvhc) keeps glTF
     instancing (a mesh placed by several nodes): the file is two-level (format 1.2); flatten=True
     (cwbvhc --flatten) places every instance's triangles in one single-level tree (builder
     'embree', keep_sbvh and keep_mesh imply it). progress: optional callable(phase, fraction, seconds), called on

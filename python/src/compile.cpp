@@ -57,10 +57,12 @@ void apply_options(const py::dict& options, CompileOptions& o) {
             o.verify = value.cast<bool>();
         } else if (k == "flatten") {
             o.flatten = value.cast<bool>();
+        } else if (k == "allow_parent_uris") {
+            o.allow_parent_uris = value.cast<bool>();
         } else {
             throw py::type_error("compile() got an unexpected option '" + k +
                                  "' (options: builder, collapse, split_alpha, max_reference_growth, "
-                                 "collapse_cost_prim, keep_sbvh, keep_mesh, verify, flatten)");
+                                 "collapse_cost_prim, keep_sbvh, keep_mesh, verify, flatten, allow_parent_uris)");
         }
     }
 }

@@ -87,6 +87,29 @@ def test_compile_option_errors(tmp_path):
         cwbvh.compile("x.obj", tmp_path / "o.cwbvh", progress=3)
 
 
+def test_compile_allow_parent_uris(tmp_path):
+    # One triangle whose buffer lies one folder up ("../tri.bin"): refused by default, as by
+    # cwbvhc, and read with allow_parent_uris=True (cwbvhc --allow-parent-uris).
+    import json, struct
+    (tmp_path / "tri.bin").write_bytes(struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0))
+    (tmp_path / "sub").mkdir()
+    src = tmp_path / "sub" / "tri.gltf"
+    src.write_text(json.dumps({
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "buffers": [{"uri": "../tri.bin", "byteLength": 36}],
+        "bufferViews": [{"buffer": 0, "byteLength": 36}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 1, 0]}]}))
+    with pytest.raises(cwbvh.Error, match=r"\.\."):
+        cwbvh.compile(src, tmp_path / "refused.cwbvh")
+    assert not (tmp_path / "refused.cwbvh").exists()
+    stats = cwbvh.compile(src, tmp_path / "ok.cwbvh", allow_parent_uris=True)
+    assert stats["triangles"] == 1
+    with pytest.raises(TypeError, match="allow_parent_uris"):
+        cwbvh.compile(src, tmp_path / "o.cwbvh", parent_uris=True)
+
+
 def test_open_info_and_deep(bunny_file):
     with cwbvh.open(bunny_file, deep=True) as scene:
         info = scene.info
