@@ -17,6 +17,8 @@
 #include <cstring>
 #include <fstream>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include <OpenMesh/Core/IO/MeshIO.hh>
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
@@ -255,32 +257,196 @@ bool check_ply_header(const std::string& path, std::string& error) {
     return false;
 }
 
-/// OpenMesh 9.0's OBJ reader (Debian builds it with assertions on) aborts
-/// with `assert(!vhandles.empty())` when a face vertex has a texture index
-/// but no position index before it on the line ("f /1 2 3"). A face vertex
-/// without a position index is invalid OBJ, so reject it with its line.
+/// Most vertices of one polygon (OBJ, OFF and PLY faces). OpenMesh's ImporterT::add_face
+/// compares a face's vertices pairwise: time grows with the square of the polygon (1.2 s
+/// for 50k vertices, 45 s for 300k), so a hostile file of one huge face would import for
+/// minutes. Real meshes' polygons have a handful of vertices.
+constexpr uint64_t kMaxFaceVertices = 65536;
+
+std::string face_too_large(uint64_t k) {
+    return "a face of " + std::to_string(k) + " vertices (at most " + std::to_string(kMaxFaceVertices) +
+           " per polygon)";
+}
+
+/// OpenMesh 9.0's OBJ reader, replayed where it goes wrong without saying so.
 /// Tokenisation mirrors OBJReader.cc: getline, trim " \t\r\n", skip empty,
-/// '#' and whitespace-led lines, keyword by >>, face blocks by >>.
-bool check_obj_faces(const std::string& path, std::string& error) {
+/// '#' and whitespace-led lines, keyword by >>, then the keyword's values by >>.
+///  - `v`: it reads x, y, z with >> and, when the stream fails (nan, inf, a value beyond
+///    float, fewer than three numbers, "1,0"), DROPS the vertex: every later index
+///    then names the next vertex, and the file compiles to wrong geometry with no
+///    message. Reject such a line.
+///  - `f`: a face vertex with a texture index but no position index ("f /1 2 3") trips
+///    `assert(!vhandles.empty())` (Debian builds it with assertions on): reject it;
+///    a face of more than kMaxFaceVertices vertices: reject it (quadratic import).
+bool check_obj(const std::string& path, std::string& error) {
     std::ifstream f;
     uint64_t size = 0;
     if (!open_for_check(path, f, size, error)) return false;
     std::string line, keyword, block;
+    auto quote = [](std::string t) { return t.size() > 48 ? t.substr(0, 48) + "..." : t; };
     for (uint64_t number = 1; std::getline(f, line); ++number) {
         const size_t start = line.find_first_not_of(" \t\r\n");
         if (start == std::string::npos || line[start] == '#' ||
             std::isspace(static_cast<unsigned char>(line[start])))
             continue;
         std::istringstream in(line.substr(start));
-        if (!(in >> keyword) || keyword != "f") continue;
-        while (in >> block) {
-            if (block[0] == '/') {
-                if (block.size() > 32) block = block.substr(0, 32) + "...";
-                error = "OBJ line " + std::to_string(number) + ": face vertex '" + block +
-                        "' has no position index";
+        if (!(in >> keyword)) continue;
+        if (keyword == "v") {
+            float x = 0, y = 0, z = 0;
+            in >> x >> y >> z;
+            if (in.fail()) {
+                const size_t end = line.find_last_not_of(" \t\r\n");
+                error = "OBJ line " + std::to_string(number) + ": vertex '" +
+                        quote(line.substr(start, end - start + 1)) +
+                        "' is not three finite float numbers (the reader would drop it and shift every later "
+                        "vertex index)";
                 return false;
             }
+        } else if (keyword == "f") {
+            uint64_t k = 0;
+            while (in >> block) {
+                if (block[0] == '/') {
+                    error = "OBJ line " + std::to_string(number) + ": face vertex '" + quote(block) +
+                            "' has no position index";
+                    return false;
+                }
+                if (++k > kMaxFaceVertices) {
+                    error = "OBJ line " + std::to_string(number) + ": " + face_too_large(k) + " or more";
+                    return false;
+                }
+            }
         }
+    }
+    return true;
+}
+
+/// ASCII PLY (format ascii 1.0): OpenMesh reads the body with >> and keeps going after
+/// the stream has failed, so a body shorter than its header (a truncated file) repeats
+/// the last face it read (a duplicate triangle, exit 0). Replay the reads: every element
+/// and property the header declares must be there; a list of more than kMaxFaceVertices
+/// entries is refused (quadratic import). Binary PLY is checked by OpenMesh itself.
+bool check_ply_ascii_body(const std::string& path, std::string& error) {
+    std::ifstream f;
+    uint64_t size = 0;
+    if (!open_for_check(path, f, size, error)) return false;
+    struct Element {
+        std::string name;
+        uint64_t count = 0;
+        std::vector<bool> is_list;
+    };
+    std::vector<Element> elements;
+    bool ascii = false;
+    std::string line;
+    while (std::getline(f, line)) {
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        std::istringstream in(line);
+        std::string word, a;
+        in >> word;
+        if (word == "format") {
+            in >> a;
+            ascii = a == "ascii";
+        } else if (word == "element") {
+            Element e;
+            in >> e.name >> e.count;
+            elements.push_back(std::move(e));
+        } else if (word == "property" && !elements.empty()) {
+            in >> a;
+            elements.back().is_list.push_back(a == "list");
+        } else if (word == "end_header") {
+            break;
+        }
+    }
+    if (!ascii) return true;
+    std::string token;
+    for (const Element& e : elements) {
+        for (uint64_t i = 0; i < e.count; ++i) {
+            for (const bool list : e.is_list) {
+                if (!list) {
+                    if (!(f >> token)) {
+                        error = "PLY file is truncated at " + e.name + " " + std::to_string(i) + " of " +
+                                std::to_string(e.count);
+                        return false;
+                    }
+                    continue;
+                }
+                // The list's length: a decimal integer (">> uint64_t" would take "-1" as 2^64 - 1
+                // and "7.9" as 7).
+                uint64_t k = 0;
+                char* end = nullptr;
+                if (!(f >> token) || token[0] < '0' || token[0] > '9' ||
+                    (k = std::strtoull(token.c_str(), &end, 10), *end != '\0')) {
+                    error = "PLY file is truncated or unparsable at " + e.name + " " + std::to_string(i) + " of " +
+                            std::to_string(e.count);
+                    return false;
+                }
+                if (k > kMaxFaceVertices) {
+                    error = "PLY " + e.name + " " + std::to_string(i) + ": " + face_too_large(k);
+                    return false;
+                }
+                for (uint64_t j = 0; j < k; ++j)
+                    if (!(f >> token)) {
+                        error = "PLY file is truncated at " + e.name + " " + std::to_string(i) + " of " +
+                                std::to_string(e.count);
+                        return false;
+                    }
+            }
+        }
+    }
+    return true;
+}
+
+/// STL. Binary: 80 bytes, a triangle count n, then n 50-byte records; a file whose size is
+/// not 84 + 50 n is read by OpenMesh as ASCII and gives "no triangles" without saying why,
+/// so a file that does not start with "solid" and whose size disagrees with its count is
+/// refused with both numbers. ASCII: every `facet` must be complete (three `vertex x y z`
+/// lines and `endfacet`); a file cut inside one is refused instead of read in part.
+bool check_stl(const std::string& path, std::string& error) {
+    std::ifstream f;
+    uint64_t size = 0;
+    if (!open_for_check(path, f, size, error)) return false;
+    char head[84] = {};
+    f.read(head, 84);
+    const bool solid = f.gcount() >= 5 && std::strncmp(head, "solid", 5) == 0;
+    if (f.gcount() == 84) {
+        uint32_t n = 0;
+        std::memcpy(&n, head + 80, 4);
+        if (84 + 50 * uint64_t(n) == size) return true;  // binary, consistent
+        if (!solid) {
+            error = "binary STL declares " + std::to_string(n) + " triangles (84 + 50 x " + std::to_string(n) +
+                    " = " + std::to_string(84 + 50 * uint64_t(n)) + " bytes) but the file has " +
+                    std::to_string(size) + " bytes";
+            return false;
+        }
+    } else if (!solid) {
+        error = "STL file of " + std::to_string(size) + " bytes: neither a binary header (84 bytes) nor ASCII 'solid'";
+        return false;
+    }
+    f.clear();
+    f.seekg(0);
+    std::string word;
+    uint64_t facets = 0, vertices = 0, complete = 0;
+    bool open = false;
+    while (f >> word) {
+        if (word == "facet") {
+            if (open) break;  // the previous facet never ended
+            open = true;
+            vertices = 0;
+            ++facets;
+        } else if (word == "vertex" && open) {
+            float x = 0, y = 0, z = 0;
+            if (!(f >> x >> y >> z)) break;
+            ++vertices;
+        } else if (word == "endfacet" && open) {
+            if (vertices != 3) break;
+            open = false;
+            ++complete;
+        }
+    }
+    if (complete != facets || open) {
+        error = "ASCII STL is truncated or malformed at facet " + std::to_string(complete) + " (" +
+                std::to_string(complete) + " complete facets: each needs three 'vertex x y z' lines and "
+                "'endfacet')";
+        return false;
     }
     return true;
 }
@@ -339,6 +505,10 @@ bool check_off(const std::string& path, std::string& error) {
         for (unsigned int i = 0; i < nf; ++i) {
             unsigned int k = 0;
             if (!read_u32(k)) return short_file("face", i, nf);
+            if (k > kMaxFaceVertices) {
+                error = "OFF face " + std::to_string(i) + ": " + face_too_large(k);
+                return false;
+            }
             const uint64_t rest = size - std::min<uint64_t>(size, uint64_t(f.tellg()));
             if (uint64_t(k) * 4 > rest) return short_file("face", i, nf);
             f.seekg(std::streamoff(k) * 4, std::ios::cur);
@@ -366,6 +536,10 @@ bool check_off(const std::string& path, std::string& error) {
     for (unsigned int i = 0; i < nf; ++i) {
         unsigned int k = 0, idx = 0;
         if (!(f >> k)) return short_file("face", i, nf);
+        if (k > kMaxFaceVertices) {
+            error = "OFF face " + std::to_string(i) + ": " + face_too_large(k);
+            return false;
+        }
         for (unsigned int j = 0; j < k; ++j)
             if (!(f >> idx)) return short_file("face", i, nf);
         if (color) std::getline(f, rest);
@@ -383,7 +557,9 @@ Result import_openmesh(const std::string& path, const ImportOptions& options, Ra
     const std::string ext = lower_extension(path);
     std::string error;
     if (ext == "ply" && (!check_ply_tokens(path, error) || !check_ply_header(path, error))) return bad(error);
-    if (ext == "obj" && !check_obj_faces(path, error)) return bad(error);
+    if (ext == "ply" && !check_ply_ascii_body(path, error)) return bad(error);
+    if (ext == "obj" && !check_obj(path, error)) return bad(error);
+    if (ext == "stl" && !check_stl(path, error)) return bad(error);
     if (ext == "off" && !check_off(path, error)) return bad(error);
     Mesh mesh;
     bool ok = false;

@@ -2,6 +2,7 @@
 // (compiler/fuzz/fuzz_import.cpp). Each used to abort, exhaust memory or
 // loop inside OpenMesh 9.0; each must now give a one-line error naming the
 // file and what is wrong.
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 
@@ -54,7 +55,7 @@ TEST(Malformed, OffFaceWithHugeVertexCountIsAnError) {
     const std::string p = dir.write("k.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n4000000000 0 1 2\n");
     const auto r = import_files({p});
     ASSERT_FALSE(r.ok);
-    EXPECT_EQ(r.error, p + ": OFF file is truncated or unparsable at face 0 of 1");
+    EXPECT_EQ(r.error, p + ": OFF face 0: a face of 4000000000 vertices (at most 65536 per polygon)");
 }
 
 // Truncated or unparsable OFF bodies: OpenMesh kept looping over the
@@ -155,6 +156,127 @@ TEST(Malformed, PlyHeaderTokensOpenMeshCannotParseAreAnError) {
     const auto ok = import_files({dir.write("ok.ply", "ply\nformat ascii 1.0\nelement" + rest)});
     ASSERT_TRUE(ok.ok) << ok.error;
     EXPECT_EQ(ok.scene.triangle_count(), 1u);
+}
+
+// OpenMesh's OBJ reader drops a `v` line whose x y z do not parse as floats (nan, inf,
+// beyond float, two numbers, "1,0"): every later index then names the next vertex, and
+// the file compiled to wrong geometry with exit 0. Found by a hostile-input audit.
+TEST(Malformed, ObjVertexTheReaderWouldDropIsAnError) {
+    TempDir dir;
+    for (const char* v : {"v nan 5 5", "v inf 0 0", "v -nan 0 0", "v 1e39 0 0", "v 1 2", "v 1,0 0 0", "v a b c",
+                          "v 0x1p3 0 0"}) {
+        const std::string p =
+            dir.write("v.obj", std::string("v 0 0 0\n") + v + "\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 4\n");
+        const auto r = import_files({p});
+        ASSERT_FALSE(r.ok) << v;
+        EXPECT_EQ(r.error.rfind(p + ": OBJ line 2: vertex '" + v + "' is not three finite float numbers", 0), 0u)
+            << r.error;
+        EXPECT_EQ(r.error.find('\n'), std::string::npos);
+    }
+    // What the reader does read stays fine: w and colours after x y z, tabs, exponents, CRLF.
+    const auto ok = import_files({dir.write(
+        "ok.obj", "v 0 0 0 1\r\nv\t1e0 0 0 0.5 0.5 0.5\nv 0 1.0E+0 -0\nf 1 2 3\n")});
+    ASSERT_TRUE(ok.ok) << ok.error;
+    EXPECT_EQ(ok.scene.triangle_count(), 1u);
+}
+
+// A polygon of more vertices than kMaxFaceVertices: OpenMesh's add_face compares its
+// vertices pairwise (45 s for one face of 300k vertices). OBJ, ASCII PLY, OFF.
+TEST(Malformed, HugePolygonIsAnError) {
+    TempDir dir;
+    const uint32_t n = 65537;
+    std::string verts, face = "f", list = "65537";
+    for (uint32_t i = 0; i < n; ++i) {
+        const double a = 6.283185307179586 * i / n;
+        verts += std::to_string(std::cos(a)) + " " + std::to_string(std::sin(a)) + " 0\n";
+        face += " " + std::to_string(i + 1);
+        list += " " + std::to_string(i);
+    }
+    std::string obj_verts;
+    for (size_t i = 0, j = 0; i < verts.size(); i = j + 1) {
+        j = verts.find('\n', i);
+        obj_verts += "v " + verts.substr(i, j - i + 1);
+    }
+    const std::string obj = dir.write("big.obj", obj_verts + face + "\n");
+    const auto r = import_files({obj});
+    ASSERT_FALSE(r.ok);
+    EXPECT_EQ(r.error, obj + ": OBJ line 65538: a face of 65537 vertices (at most 65536 per polygon) or more");
+    const std::string ply = dir.write("big.ply", "ply\nformat ascii 1.0\nelement vertex 65537\nproperty float x\n"
+                                                 "property float y\nproperty float z\nelement face 1\n"
+                                                 "property list uint int vertex_indices\nend_header\n" +
+                                                     verts + list + "\n");
+    const auto rp = import_files({ply});
+    ASSERT_FALSE(rp.ok);
+    EXPECT_EQ(rp.error, ply + ": PLY face 0: a face of 65537 vertices (at most 65536 per polygon)");
+    const std::string off = dir.write("big.off", "OFF\n65537 1 0\n" + verts + list + "\n");
+    const auto ro = import_files({off});
+    ASSERT_FALSE(ro.ok);
+    EXPECT_EQ(ro.error, off + ": OFF face 0: a face of 65537 vertices (at most 65536 per polygon)");
+}
+
+// ASCII PLY shorter than its header: OpenMesh kept reading a failed stream and repeated
+// the last face (two identical triangles from one, exit 0). A list length that is not a
+// decimal integer ("-1", "7.9") is refused too.
+TEST(Malformed, PlyAsciiBodyShorterThanItsHeaderIsAnError) {
+    TempDir dir;
+    const std::string head =
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+        "element face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
+    struct Case {
+        std::string body, error;
+    };
+    const Case cases[] = {
+        {"3 0 1 2\n", "PLY file is truncated or unparsable at face 1 of 2"},
+        {"3 0 1 2\n3 0 1\n", "PLY file is truncated at face 1 of 2"},
+        {"3 0 1 2\n-1 0 1 2\n", "PLY file is truncated or unparsable at face 1 of 2"},
+        {"3 0 1 2\n2.5 0 1 2\n", "PLY file is truncated or unparsable at face 1 of 2"},
+    };
+    for (const Case& c : cases) {
+        const std::string p = dir.write("t.ply", head + c.body);
+        const auto r = import_files({p});
+        ASSERT_FALSE(r.ok) << c.body;
+        EXPECT_EQ(r.error, p + ": " + c.error);
+    }
+    const std::string short_vertices =
+        dir.write("v.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                           "property float z\nend_header\n0 0 0\n1 0\n");
+    const auto rv = import_files({short_vertices});
+    ASSERT_FALSE(rv.ok);
+    EXPECT_EQ(rv.error, short_vertices + ": PLY file is truncated at vertex 1 of 3");
+    const auto ok = import_files({dir.write("ok.ply", head + "3 0 1 2\n3 2 1 0\n")});
+    ASSERT_TRUE(ok.ok) << ok.error;
+    EXPECT_EQ(ok.scene.triangle_count(), 2u);
+}
+
+// STL: a binary file whose size disagrees with its triangle count, and an ASCII file cut
+// inside a facet, are refused with what is wrong (were "no triangles", or read in part
+// with a warning and exit 0).
+TEST(Malformed, StlInconsistentOrCutIsAnError) {
+    TempDir dir;
+    std::string bin(80, ' ');
+    bin += u32(2);
+    for (int t = 0; t < 1; ++t) {
+        for (float c : {0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) bin += f32(c);
+        bin += std::string(2, '\0');
+    }
+    const std::string pb = dir.write("b.stl", bin);
+    const auto rb = import_files({pb});
+    ASSERT_FALSE(rb.ok);
+    EXPECT_EQ(rb.error, pb + ": binary STL declares 2 triangles (84 + 50 x 2 = 184 bytes) but the file has 134 bytes");
+    const std::string facet =
+        "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n";
+    const std::string cut = "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0";
+    const std::string pa = dir.write("a.stl", "solid x\n" + facet + cut);
+    const auto ra = import_files({pa});
+    ASSERT_FALSE(ra.ok);
+    EXPECT_EQ(ra.error.rfind(pa + ": ASCII STL is truncated or malformed at facet 1", 0), 0u) << ra.error;
+    const auto ok = import_files({dir.write("ok.stl", "solid x\n" + facet + facet + "endsolid x\n")});
+    ASSERT_TRUE(ok.ok) << ok.error;
+    EXPECT_EQ(ok.scene.triangle_count(), 2u);
+    bin.replace(80, 4, u32(1));
+    const auto okb = import_files({dir.write("okb.stl", bin)});
+    ASSERT_TRUE(okb.ok) << okb.error;
+    EXPECT_EQ(okb.scene.triangle_count(), 1u);
 }
 
 }  // namespace
