@@ -126,6 +126,49 @@ double read_component(const uint8_t* p, int component_type, bool normalized) {
     }
 }
 
+/// The glTF's JSON text inside `bytes` (a GLB's first chunk, or the whole file); false
+/// when a GLB's chunk does not fit (tinygltf then reports the malformed file).
+bool json_text(const std::vector<uint8_t>& bytes, bool binary, size_t& begin, size_t& size) {
+    begin = 0;
+    size = bytes.size();
+    if (!binary) return true;
+    if (bytes.size() < 20) return false;
+    uint32_t chunk0 = 0;
+    std::memcpy(&chunk0, bytes.data() + 12, 4);
+    if (chunk0 > bytes.size() - 20) return false;
+    begin = 20;
+    size = chunk0;
+    return true;
+}
+
+/// Deepest nesting of JSON arrays and objects cwbvhc reads. tinygltf converts `extras` and
+/// extension values recursively (ParseJsonAsValue): about 30,000 nested brackets in a
+/// 100 KB file overflowed the stack (SIGSEGV). glTF itself nests about 6 deep; 512 leaves
+/// user `extras` ample room.
+constexpr int kMaxJsonDepth = 512;
+
+/// Whether the JSON text nests deeper than kMaxJsonDepth: a scan of brackets outside strings
+/// (backslash escapes skipped), before any parser recurses. Malformed JSON that does not nest
+/// too deep passes, for tinygltf to report.
+bool json_too_deep(const char* text, size_t size) {
+    int depth = 0;
+    bool in_string = false;
+    for (size_t i = 0; i < size; ++i) {
+        const char c = text[i];
+        if (in_string) {
+            if (c == '\\') ++i;
+            else if (c == '"') in_string = false;
+        } else if (c == '"') {
+            in_string = true;
+        } else if (c == '[' || c == '{') {
+            if (++depth > kMaxJsonDepth) return true;
+        } else if (c == ']' || c == '}') {
+            --depth;
+        }
+    }
+    return false;
+}
+
 /// (mesh, primitive) -> indices accessor of KHR_draco_mesh_compression
 /// primitives (see strip_draco_indices).
 using DracoIndices = std::map<std::pair<size_t, size_t>, int>;
@@ -139,15 +182,8 @@ using DracoIndices = std::map<std::pair<size_t, size_t>, int>;
 /// problem leaves them unchanged and lets tinygltf report the error.
 void strip_draco_indices(std::vector<uint8_t>& bytes, bool binary, DracoIndices& table) {
     static const std::string kExt = "KHR_draco_mesh_compression";
-    size_t json_begin = 0, json_size = bytes.size();
-    if (binary) {
-        if (bytes.size() < 20) return;
-        uint32_t chunk0 = 0;
-        std::memcpy(&chunk0, bytes.data() + 12, 4);
-        if (chunk0 > bytes.size() - 20) return;
-        json_begin = 20;
-        json_size = chunk0;
-    }
+    size_t json_begin = 0, json_size = 0;
+    if (!json_text(bytes, binary, json_begin, json_size)) return;
     const char* text = reinterpret_cast<const char*>(bytes.data()) + json_begin;
     if (std::string_view(text, json_size).find(kExt) == std::string_view::npos) return;
     nlohmann::json doc = nlohmann::json::parse(text, text + json_size, nullptr, false);
@@ -910,6 +946,9 @@ Result import_gltf(const std::string& path, const ImportOptions& options, RawInp
         std::vector<uint8_t> bytes;
         if (Result r = read_file_bytes(path, bytes); !r.ok()) return r;
         const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
+        if (size_t jb = 0, js = 0;
+            json_text(bytes, binary, jb, js) && json_too_deep(reinterpret_cast<const char*>(bytes.data()) + jb, js))
+            return bad("JSON nests arrays or objects more than " + std::to_string(kMaxJsonDepth) + " deep");
         DracoIndices draco_indices;
         strip_draco_indices(bytes, binary, draco_indices);
         if (bytes.size() >= std::numeric_limits<unsigned int>::max())

@@ -414,6 +414,44 @@ TEST(Gltf, BadAccessorsAndIndicesAreRejected) {
     }
 }
 
+// tinygltf converts `extras` recursively: about 30,000 nested brackets in a 100 KB file
+// overflowed its stack (SIGSEGV; hostile-input audit). JSON nesting beyond 512 is refused
+// before any parser runs, in .gltf and in a GLB's JSON chunk; brackets inside strings do
+// not count, and 512 levels of extras still load.
+TEST(Gltf, DeeplyNestedJsonIsAnErrorNotACrash) {
+    TempDir dir;
+    GltfBuilder b;
+    b.mesh({prim(b.positions(kSquare))});
+    b.node("{\"mesh\":0}");
+    b.scenes = "\"scenes\":[{\"nodes\":[0]}],\"scene\":0,";
+    auto nested = [](int d) { return std::string(size_t(d), '[') + std::string(size_t(d), ']'); };
+    auto with_extras = [&](const std::string& extras) {
+        std::string j = b.json();
+        return j.substr(0, j.size() - 1) + ",\"extras\":" + extras + "}";
+    };
+    const std::string deep = with_extras(nested(50000));
+    const std::string p = dir.write("deep.gltf", deep);
+    Result r = import_files({p});
+    ASSERT_FALSE(r.ok);
+    EXPECT_EQ(r.error, p + ": JSON nests arrays or objects more than 512 deep");
+    // The same JSON as a GLB's JSON chunk (no BIN chunk: the buffer is a data URI).
+    std::string json = deep;
+    while (json.size() % 4) json.push_back(' ');
+    auto u32 = [](uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
+    const std::string glb = "glTF" + u32(2) + u32(uint32_t(20 + json.size())) + u32(uint32_t(json.size())) +
+                            u32(0x4E4F534A) + json;
+    const std::string pg = dir.write("deep.glb", glb);
+    r = import_files({pg});
+    ASSERT_FALSE(r.ok);
+    EXPECT_EQ(r.error, pg + ": JSON nests arrays or objects more than 512 deep");
+    // At the limit, and with brackets in a string (escaped quotes included), it loads.
+    for (const std::string& extras : {nested(511), "{\"a\":\"\\\"" + std::string(2000, '[') + "\"}"}) {
+        const Result ok = import_files({dir.write("ok.gltf", with_extras(extras))});
+        ASSERT_TRUE(ok.ok) << ok.error;
+        EXPECT_EQ(ok.scene.triangle_count(), 1u);
+    }
+}
+
 TEST(Gltf, NoImageIsEverDecoded) {
     TempDir dir;
     GltfBuilder b;
