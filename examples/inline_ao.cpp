@@ -8,6 +8,7 @@
 //
 // usage: inline_ao SCENE.cwbvh OUT.pgm [WIDTH HEIGHT] [--samples N] [--cpu]
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -34,8 +35,15 @@ using namespace cwbvh::example;
 namespace {
 
 int usage() {
-    std::fprintf(stderr, "usage: inline_ao SCENE.cwbvh OUT.pgm [WIDTH HEIGHT] [--samples N] [--cpu]\n");
+    std::fprintf(stderr, "usage: inline_ao SCENE.cwbvh OUT.pgm [WIDTH HEIGHT] [--samples N] [--cpu]\n"
+                         "  WIDTH HEIGHT: integers in [1, 16384]; N: an integer in [1, 4096]\n");
     return 2;
+}
+
+/// A decimal integer in [lo, hi], nothing else ("10x", "", "-1" are refused).
+bool parse_int(const std::string& text, int lo, int hi, int& out) {
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), out);
+    return ec == std::errc() && end == text.data() + text.size() && out >= lo && out <= hi;
 }
 
 }  // namespace
@@ -49,7 +57,7 @@ int main(int argc, char** argv) {
         if (a == "--cpu") {
             force_cpu = true;
         } else if (a == "--samples" && i + 1 < argc) {
-            samples = std::atoi(argv[++i]);
+            if (!parse_int(argv[++i], 1, 4096, samples)) return usage();
         } else if (a.size() > 1 && a[0] == '-') {
             return usage();
         } else {
@@ -57,11 +65,7 @@ int main(int argc, char** argv) {
         }
     }
     if (pos.size() != 2 && pos.size() != 4) return usage();
-    if (pos.size() == 4) {
-        w = std::atoi(pos[2].c_str());
-        h = std::atoi(pos[3].c_str());
-    }
-    if (w <= 0 || h <= 0 || w > 16384 || h > 16384 || samples <= 0 || samples > 4096) return usage();
+    if (pos.size() == 4 && (!parse_int(pos[2], 1, 16384, w) || !parse_int(pos[3], 1, 16384, h))) return usage();
 
     // Never the input as the output (the scene is mapped while the image is written).
     const Result out_ok = check_output_path(pos[1], {pos[0]});
@@ -141,15 +145,11 @@ int main(int argc, char** argv) {
         sum += ao[i];
         img[i] = (unsigned char)(60.0f + 195.0f * ao[i]);
     }
-    FILE* f = std::fopen(pos[1].c_str(), "wb");
-    if (!f) {
-        std::fprintf(stderr, "inline_ao: %s: cannot write\n", pos[1].c_str());
-        return 1;
-    }
-    std::fprintf(f, "P5\n%d %d\n255\n", w, h);
-    const bool written = std::fwrite(img.data(), 1, img.size(), f) == img.size();
-    if (std::fclose(f) != 0 || !written) {
-        std::fprintf(stderr, "inline_ao: %s: write failed\n", pos[1].c_str());
+    // The image appears whole or not at all (a full disk leaves no partial file).
+    std::string pgm = "P5\n" + std::to_string(w) + " " + std::to_string(h) + "\n255\n";
+    pgm.append(reinterpret_cast<const char*>(img.data()), img.size());
+    if (const Result r = write_file_atomic(pos[1], pgm.data(), pgm.size()); !r.ok()) {
+        std::fprintf(stderr, "inline_ao: %s\n", r.message.c_str());
         return 1;
     }
     std::printf("%s: %zu of %zu pixels on geometry, mean unoccluded share %.3f\n", pos[1].c_str(), hit, ao.size(),

@@ -3,6 +3,7 @@
 // shade by |cos| between the view ray and the geometric normal, write a binary PPM.
 //
 // usage: minimal_render SCENE.cwbvh OUT.ppm [WIDTH HEIGHT] [--cpu]
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -16,24 +17,35 @@
 #include "cwbvh/kernels/two_level_file.h"
 #include "cwbvh/loader/loader.h"
 
+namespace {
+
+int usage(const char* why) {
+    std::fprintf(stderr, "minimal_render: %s\nusage: minimal_render SCENE.cwbvh OUT.ppm [WIDTH HEIGHT] [--cpu]\n", why);
+    return 2;
+}
+
+/// A decimal integer in [1, 16384], nothing else.
+bool parse_size(const std::string& text, int& out) {
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), out);
+    return ec == std::errc() && end == text.data() + text.size() && out >= 1 && out <= 16384;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
     using namespace cwbvh;
-    if (argc < 3) {
-        std::fprintf(stderr, "usage: minimal_render SCENE.cwbvh OUT.ppm [WIDTH HEIGHT] [--cpu]\n");
-        return 2;
-    }
     int w = 640, h = 480;
     bool force_cpu = false;
     std::vector<std::string> pos;
     for (int i = 1; i < argc; ++i) {
-        if (std::string(argv[i]) == "--cpu") force_cpu = true;
-        else pos.push_back(argv[i]);
+        const std::string a = argv[i];
+        if (a == "--cpu") force_cpu = true;
+        else if (a.size() > 1 && a[0] == '-') return usage(("unknown option " + a).c_str());
+        else pos.push_back(a);
     }
-    if (pos.size() >= 4) {
-        w = std::atoi(pos[2].c_str());
-        h = std::atoi(pos[3].c_str());
-    }
-    if (w <= 0 || h <= 0 || w > 16384 || h > 16384) return 2;
+    if (pos.size() != 2 && pos.size() != 4) return usage("expects SCENE.cwbvh OUT.ppm and optionally WIDTH HEIGHT");
+    if (pos.size() == 4 && (!parse_size(pos[2], w) || !parse_size(pos[3], h)))
+        return usage("WIDTH and HEIGHT must be integers in [1, 16384]");
     // Never the input as the output (the scene is mapped while the image is written).
     const Result out_ok = check_output_path(pos[1], {pos[0]});
     if (!out_ok.ok()) {
@@ -133,12 +145,12 @@ int main(int argc, char** argv) {
         img[3 * i + 1] = v;
         img[3 * i + 2] = (unsigned char)(hits[i].prim == kMissPrim ? 60 : v);
     }
-    FILE* out = std::fopen(pos[1].c_str(), "wb");
-    if (!out) {
-        std::perror(pos[1].c_str());
+    // The image appears whole or not at all (a full disk leaves no partial file).
+    std::string ppm = "P6\n" + std::to_string(w) + " " + std::to_string(h) + "\n255\n";
+    ppm.append(reinterpret_cast<const char*>(img.data()), img.size());
+    if (const Result written = write_file_atomic(pos[1], ppm.data(), ppm.size()); !written.ok()) {
+        std::fprintf(stderr, "minimal_render: %s\n", written.message.c_str());
         return 1;
     }
-    std::fprintf(out, "P6\n%d %d\n255\n", w, h);
-    const bool ok = std::fwrite(img.data(), 1, img.size(), out) == img.size();
-    return (std::fclose(out) == 0 && ok) ? 0 : 1;
+    return 0;
 }

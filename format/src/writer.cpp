@@ -9,6 +9,7 @@
 #include <cstring>
 
 #include "cwbvh/format/checksum.h"
+#include "cwbvh/format/file_io.h"
 #include "cwbvh/format/sections.h"
 
 namespace cwbvh {
@@ -16,19 +17,6 @@ namespace {
 
 uint64_t align_up(uint64_t v, uint64_t a) { return (v + a - 1) / a * a; }
 
-Result write_all(int fd, const void* data, size_t size, const std::string& path) {
-    const auto* p = static_cast<const uint8_t*>(data);
-    while (size > 0) {
-        const ssize_t n = ::write(fd, p, size);
-        if (n < 0) {
-            if (errno == EINTR) continue;
-            return fail(rule::kWriteFailed, path + ": write failed: " + std::strerror(errno));
-        }
-        p += n;
-        size -= size_t(n);
-    }
-    return Result::success();
-}
 
 }  // namespace
 
@@ -104,26 +92,18 @@ Result Writer::write_file(const std::string& path) const {
     FileHeader header;
     std::vector<SectionEntry> table;
     if (Result r = layout(header, table); !r.ok()) return r;
-
-    static std::atomic<uint64_t> counter{0};
-    const std::string tmp = path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter++);
-    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-    if (fd < 0) return fail(rule::kOpenFailed, tmp + ": cannot create: " + std::strerror(errno));
-
-    Result r = write_all(fd, &header, sizeof header, tmp);
-    if (r.ok()) r = write_all(fd, table.data(), table.size() * sizeof(SectionEntry), tmp);
+    Expected<AtomicOutput> out = AtomicOutput::create(path);  // the file appears whole or not at all
+    if (!out.ok()) return out.error();
+    Result r = out->write(&header, sizeof header);
+    if (r.ok()) r = out->write(table.data(), table.size() * sizeof(SectionEntry));
     uint64_t cursor = sizeof header + table.size() * sizeof(SectionEntry);
     static const uint8_t kZeros[kSectionAlignment] = {};
     for (size_t i = 0; r.ok() && i < table.size(); ++i) {
-        r = write_all(fd, kZeros, table[i].offset - cursor, tmp);  // padding < 64 bytes
-        if (r.ok()) r = write_all(fd, sections_[i].bytes.data(), table[i].size, tmp);
+        r = out->write(kZeros, table[i].offset - cursor);  // padding < 64 bytes
+        if (r.ok()) r = out->write(sections_[i].bytes.data(), table[i].size);
         cursor = table[i].offset + table[i].size;
     }
-    if (::close(fd) != 0 && r.ok()) r = fail(rule::kWriteFailed, tmp + ": close failed: " + std::strerror(errno));
-    if (r.ok() && std::rename(tmp.c_str(), path.c_str()) != 0)
-        r = fail(rule::kWriteFailed, path + ": cannot rename " + tmp + ": " + std::strerror(errno));
-    if (!r.ok()) ::unlink(tmp.c_str());
-    return r;
+    return r.ok() ? out->commit() : r;
 }
 
 }  // namespace cwbvh

@@ -19,7 +19,6 @@ static_assert(std::endian::native == std::endian::little,
 constexpr size_t kHeaderSize = sizeof(RayFileHeader);
 
 Result bad(std::string what) { return Result::fail(Status::kBadInput, 0, std::move(what)); }
-Result io(std::string what) { return Result::fail(Status::kIoError, 0, std::move(what)); }
 
 /// Opens `path` and checks its header: the file must be a regular file (a FIFO or a device such
 /// as /dev/zero is refused before any read), and the header's count is checked against the size
@@ -56,13 +55,11 @@ Result read_records(const std::string& path, bool want_hits, std::vector<T>& out
 }
 
 Result write_all(const std::string& path, const RayFileHeader& h, const void* records, size_t bytes) {
-    FILE* f = std::fopen(path.c_str(), "wb");
-    if (!f) return io(path + ": cannot create: " + std::strerror(errno));
-    bool ok = std::fwrite(&h, sizeof h, 1, f) == 1;
-    if (ok && bytes > 0) ok = std::fwrite(records, 1, bytes, f) == bytes;
-    if (std::fclose(f) != 0) ok = false;
-    if (!ok) return io(path + ": write error");
-    return Result::success();
+    Expected<AtomicOutput> out = AtomicOutput::create(path);  // whole or not at all (file_io.h)
+    if (!out.ok()) return out.error();
+    Result r = out->write(&h, sizeof h);
+    if (r.ok() && bytes > 0) r = out->write(records, bytes);
+    return r.ok() ? out->commit() : r;
 }
 
 RayFileHeader make_header(bool hits, uint64_t count, uint32_t flags, bool instances = false) {

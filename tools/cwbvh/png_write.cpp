@@ -1,6 +1,8 @@
 // PNG writer on libpng (see png_write.h).
 #include "png_write.h"
 
+#include "cwbvh/format/file_io.h"
+
 #include <png.h>
 #include <zlib.h>
 
@@ -84,15 +86,9 @@ bool write_png_rgb(const std::string& path, const uint8_t* rgb, uint32_t width, 
         error = path + ": cannot encode the PNG: " + sink.message;
         return false;
     }
-    FILE* f = std::fopen(path.c_str(), "wb");
-    if (!f) {
-        error = path + ": cannot create: " + std::strerror(errno);
-        return false;
-    }
-    bool ok = std::fwrite(png.data(), 1, png.size(), f) == png.size();
-    if (std::fclose(f) != 0) ok = false;
-    if (!ok) error = path + ": write error";
-    return ok;
+    const Result r = write_file_atomic(path, png.data(), png.size());  // whole or not at all
+    if (!r.ok()) error = r.message;
+    return r.ok();
 }
 
 }  // namespace cwbvh::tool

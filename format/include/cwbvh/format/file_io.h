@@ -54,11 +54,44 @@ Result read_regular_file(const std::string& path, uint64_t max_bytes, std::vecto
 /// inode (hard links, bind mounts).
 bool same_file(const std::string& a, const std::string& b);
 
-/// Checks an output path before anything is read or written: it must not be one of `others`
-/// (the inputs, or another output of the same command) by same_file(), and if it exists it must
-/// be a regular file. Error (kInvalidArgument, rule 0): "<output>: output is the same file as
-/// '<other>'; refusing to overwrite it", "<output>: output is a directory", "<output>: output
-/// exists and is not a regular file".
+/// Checks an output path before anything is read or written: it must not be empty, nor one of
+/// `others` (the inputs, or another output of the same command) by same_file(); if it exists it
+/// must be a regular file, and its folder must exist. Error (kInvalidArgument, rule 0): "output
+/// path is empty", "<output>: output is the same file as '<other>'; refusing to overwrite it",
+/// "<output>: output is a directory", "<output>: output exists and is not a regular file",
+/// "<output>: output folder '<folder>' does not exist".
 Result check_output_path(const std::string& output, const std::vector<std::string>& others);
+
+/// An output that replaces `path` only when it is complete: the bytes go to a new file beside it
+/// (`path.tmp.<pid>.<n>`, created with O_EXCL), and commit() renames that over `path` (atomic on
+/// one file system). A failed write or commit, or destruction before commit(), removes the
+/// temporary file: `path` keeps its old contents, or stays absent; never a partial file that looks
+/// valid. The one write path of every tool (the .cwbvh writer, ray, hit and image files).
+/// Errors name the file and the reason (errno): rule 1001 (cannot create), 1005 (write, close or
+/// rename failed).
+class AtomicOutput {
+public:
+    static Expected<AtomicOutput> create(const std::string& path);
+
+    AtomicOutput() = default;
+    AtomicOutput(AtomicOutput&& other) noexcept;
+    AtomicOutput& operator=(AtomicOutput&& other) noexcept;
+    AtomicOutput(const AtomicOutput&) = delete;
+    AtomicOutput& operator=(const AtomicOutput&) = delete;
+    ~AtomicOutput();
+
+    /// Appends `n` bytes (all of them, or an error).
+    Result write(const void* data, uint64_t n);
+    /// Closes the temporary file and renames it over the path; after an error nothing is left.
+    Result commit();
+
+private:
+    void discard();
+    int fd_ = -1;
+    std::string path_, tmp_;
+};
+
+/// `n` bytes as the whole of `path`, through AtomicOutput.
+Result write_file_atomic(const std::string& path, const void* data, uint64_t n);
 
 }  // namespace cwbvh
