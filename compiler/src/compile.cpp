@@ -14,6 +14,8 @@
 #include "cwbvh/compiler/build.h"
 #include "cwbvh/compiler/compile.h"
 #include "cwbvh/compiler/core.h"
+#include "cwbvh/compiler/import.h"
+#include "cwbvh/format/file_io.h"
 #include "cwbvh/compiler/emit.h"
 #include "cwbvh/compiler/import.h"
 #include "cwbvh/compiler/model.h"
@@ -134,6 +136,9 @@ Result compile_two_level_phases(const CompileOptions& options, InstancedScene& s
 
 Result compile_phases(const CompileOptions& options, CompileStats& stats, const PhaseCallback& on_phase,
                       Progress* progress) {
+    // The output replaces no input and no file an input names (a glTF's buffers and images, an
+    // OBJ's material libraries): checked before anything is read (cwbvhc and Python alike).
+    if (Result r = check_output_path(options.output, inputs_and_referenced_files(options.inputs)); !r.ok()) return r;
     PhaseTimer timer(stats, on_phase, progress);
 
     Scene scene;

@@ -74,6 +74,26 @@ Result import_one(const std::string& path, const ImportOptions& options, RawInpu
 
 }  // namespace
 
+std::vector<std::string> inputs_and_referenced_files(const std::vector<std::string>& inputs) {
+    std::vector<std::string> all = inputs;
+    for (const std::string& input : inputs)
+        for (std::string& f : referenced_files(input)) all.push_back(std::move(f));
+    return all;
+}
+
+std::vector<std::string> referenced_files(const std::string& input) {
+    Result error;
+    switch (detect(input, error)) {
+        case Format::kGltf:
+        case Format::kGlb: return gltf_referenced_files(input);
+        case Format::kOpenMesh:
+            return lower_extension(input) == "obj" ? obj_referenced_files(input) : std::vector<std::string>{};
+        case Format::kDraco:
+        case Format::kUnknown: break;
+    }
+    return {};
+}
+
 Result read_file_bytes(const std::string& path, std::vector<uint8_t>& bytes) {
     // Bounded by the size fstat reported; a FIFO or device is refused (file_io.h).
     return without_path(read_regular_file(path, UINT64_MAX, bytes), path);

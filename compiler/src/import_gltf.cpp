@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cctype>
 #include <cstring>
 #include <limits>
 #include <map>
@@ -933,6 +934,46 @@ std::vector<std::string> split_lines(const std::string& text) {
 }
 
 }  // namespace
+
+std::vector<std::string> gltf_referenced_files(const std::string& path) {
+    std::vector<std::string> out;
+    std::vector<uint8_t> bytes;
+    if (!read_file_bytes(path, bytes).ok()) return out;
+    const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
+    size_t begin = 0, size = 0;
+    if (!json_text(bytes, binary, begin, size)) return out;
+    const char* text = reinterpret_cast<const char*>(bytes.data()) + begin;
+    if (json_too_deep(text, size)) return out;
+    const nlohmann::json doc = nlohmann::json::parse(text, text + size, nullptr, false);
+    if (doc.is_discarded() || !doc.is_object()) return out;
+    const size_t slash = path.find_last_of('/');
+    const std::string dir = slash == std::string::npos ? "" : path.substr(0, slash + 1);
+    auto percent_decoded = [](const std::string& uri) {
+        std::string d;
+        for (size_t i = 0; i < uri.size(); ++i) {
+            if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(static_cast<unsigned char>(uri[i + 1])) &&
+                std::isxdigit(static_cast<unsigned char>(uri[i + 2]))) {
+                d.push_back(char(std::stoi(uri.substr(i + 1, 2), nullptr, 16)));
+                i += 2;
+            } else {
+                d.push_back(uri[i]);
+            }
+        }
+        return d;
+    };
+    for (const char* key : {"buffers", "images"}) {
+        const auto list = doc.find(key);
+        if (list == doc.end() || !list->is_array()) continue;
+        for (const nlohmann::json& item : *list) {
+            if (!item.is_object() || !item.contains("uri") || !item["uri"].is_string()) continue;
+            const std::string uri = item["uri"].get<std::string>();
+            if (uri.empty() || uri.rfind("data:", 0) == 0) continue;
+            for (const std::string& u : {uri, percent_decoded(uri)})
+                out.push_back(!u.empty() && u[0] == '/' ? u : dir + u);
+        }
+    }
+    return out;
+}
 
 Result import_gltf(const std::string& path, const ImportOptions& options, RawInput& out,
                    std::vector<std::string>& warnings, RawInstanced* instanced, bool* is_instanced) {

@@ -549,6 +549,23 @@ bool check_off(const std::string& path, std::string& error) {
 
 }  // namespace
 
+std::vector<std::string> obj_referenced_files(const std::string& path) {
+    // OpenMesh's OBJ reader opens each `mtllib` name relative to the OBJ's folder.
+    std::vector<std::string> out;
+    std::ifstream f(path, std::ios::binary);
+    if (!f) return out;
+    const size_t slash = path.find_last_of('/');
+    const std::string dir = slash == std::string::npos ? "" : path.substr(0, slash + 1);
+    std::string line, keyword, name;
+    while (std::getline(f, line)) {
+        std::istringstream in(line);
+        if (!(in >> keyword) || keyword != "mtllib") continue;
+        while (in >> name) out.push_back(!name.empty() && name[0] == '/' ? name : dir + name);
+        if (out.size() > 1000) break;  // a hostile file: enough to guard any real output
+    }
+    return out;
+}
+
 Result import_openmesh(const std::string& path, const ImportOptions& options, RawInput& out,
                        std::vector<std::string>& warnings) {
     (void)options;

@@ -107,6 +107,7 @@ bool same_file(const std::string& a, const std::string& b) {
 }
 
 Result check_output_path(const std::string& output, const std::vector<std::string>& others) {
+    if (output.empty()) return Result::fail(Status::kInvalidArgument, 0, "output path is empty");
     auto bad = [&](const std::string& what) { return Result::fail(Status::kInvalidArgument, 0, output + ": " + what); };
     for (const auto& other : others)
         if (same_file(output, other)) return bad("output is the same file as '" + other + "'; refusing to overwrite it");
@@ -114,6 +115,10 @@ Result check_output_path(const std::string& output, const std::vector<std::strin
     const fs::file_status status = fs::status(output, ec);  // follows symlinks
     if (fs::is_directory(status)) return bad("output is a directory");
     if (fs::exists(status) && !fs::is_regular_file(status)) return bad("output exists and is not a regular file");
+    // Its folder must exist, so that a long job does not end in "cannot create".
+    const fs::path folder = fs::path(output).parent_path();
+    if (!folder.empty() && !fs::is_directory(fs::status(folder, ec)))
+        return bad("output folder '" + folder.string() + "' does not exist");
     return Result::success();
 }
 

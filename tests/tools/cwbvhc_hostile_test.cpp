@@ -129,4 +129,49 @@ TEST(CwbvhcHostile, FailedImportSaysWhyWithCappedWarnings) {
     EXPECT_TRUE(contains(many.err, "cwbvhc: warning: ... 7 more (27 warnings in all)")) << many.err;
 }
 
+// An output over a file the input names (hostile-input audit): `-o` over a glTF's external
+// buffer replaced the scene's own data with a .cwbvh (exit 0), over its texture or an OBJ's
+// material library the user's files. Each is refused before anything is read, and the file
+// is left as it was; a statistics path in a missing folder is refused before the compile
+// (it was reported after it, with the .cwbvh already written).
+TEST(CwbvhcHostile, OutputsNeverReplaceFilesTheInputNames) {
+    const fs::path dir = cwbvh::test::temp_dir("h21_referenced");
+    fs::create_directories(dir / "tex dir");
+    write_triangle_bin(dir / "tri.bin");
+    std::string json = gltf_with_buffer("tri.bin");
+    json.insert(json.size() - 1, ",\"images\":[{\"uri\":\"tex%20dir/t.png\"},{\"uri\":\"data:image/png;base64,AA==\"}]");
+    { std::ofstream(dir / "scene.gltf") << json; }
+    { std::ofstream(dir / "tex dir" / "t.png") << "png"; }
+    for (const fs::path& target : {dir / "tri.bin", dir / "tex dir" / "t.png", dir / "tex%20dir" / ".." / "tri.bin"}) {
+        const std::string before = slurp(dir / "tri.bin") + slurp(dir / "tex dir" / "t.png");
+        const RunResult r = cwbvhc({(dir / "scene.gltf").string(), "-o", target.string()}, dir);
+        EXPECT_EQ(r.exit_code, 1) << target << r.err;
+        EXPECT_TRUE(contains(r.err, "refusing to overwrite it")) << r.err;
+        EXPECT_EQ(slurp(dir / "tri.bin") + slurp(dir / "tex dir" / "t.png"), before);
+    }
+    // OBJ: its mtllib files.
+    { std::ofstream(dir / "m.obj") << "mtllib my.mtl other.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"; }
+    { std::ofstream(dir / "my.mtl") << "newmtl a\n"; }
+    for (const char* mtl : {"my.mtl", "other.mtl"}) {
+        const RunResult r = cwbvhc({(dir / "m.obj").string(), "-o", (dir / mtl).string()}, dir);
+        EXPECT_EQ(r.exit_code, 1) << r.err;
+        EXPECT_TRUE(contains(r.err, "refusing to overwrite it")) << r.err;
+    }
+    EXPECT_EQ(slurp(dir / "my.mtl"), "newmtl a\n");
+    EXPECT_FALSE(fs::exists(dir / "other.mtl"));
+    // The statistics, too, and a missing folder is refused before the compile: no .cwbvh.
+    RunResult r = cwbvhc({(dir / "scene.gltf").string(), "-o", (dir / "s.cwbvh").string(), "--stats-json",
+                          (dir / "tri.bin").string()}, dir);
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    r = cwbvhc({(dir / "scene.gltf").string(), "-o", (dir / "s.cwbvh").string(), "--stats-json",
+                (dir / "nodir" / "st.json").string()}, dir);
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_TRUE(contains(r.err, "output folder")) << r.err;
+    EXPECT_FALSE(fs::exists(dir / "s.cwbvh"));
+    // A plain compile of the same scene works and leaves the referenced files alone.
+    r = cwbvhc({(dir / "scene.gltf").string(), "-o", (dir / "s.cwbvh").string(), "-q"}, dir);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(fs::exists(dir / "s.cwbvh"));
+}
+
 }  // namespace

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "cwbvh/compiler/compile.h"
+#include "cwbvh/compiler/import.h"
 #include "cwbvh/compiler/phase_line.h"
 #include "cwbvh/compiler/progress.h"
 #include "cwbvh/format/file_io.h"
@@ -146,7 +147,7 @@ int main(int argc, char** argv) {
 
     // Bad input rather than usage (exit 1): the arguments are well formed; what is wrong is the
     // files they name, which is often only visible on disk (a symlink, a hard link).
-    std::vector<std::string> named = options.inputs;
+    std::vector<std::string> named = cwbvh::compiler::inputs_and_referenced_files(options.inputs);
     cwbvh::Result output_check = cwbvh::check_output_path(options.output, named);
     if (output_check.ok() && !stats_json.empty()) {
         named.push_back(options.output);
@@ -189,10 +190,12 @@ int main(int argc, char** argv) {
         std::fputs(stats_to_table(stats).c_str(), stdout);
     }
     if (!stats_json.empty()) {
-        std::ofstream out(stats_json, std::ios::binary);
-        out << stats_to_json(stats);
-        if (!out) {
-            std::fprintf(stderr, "cwbvhc: error: %s: cannot write statistics\n", stats_json.c_str());
+        // Its folder was checked before the compile; what fails now (a full disk) leaves no
+        // partial JSON, and says that the .cwbvh itself is complete.
+        const std::string json = stats_to_json(stats);
+        if (const cwbvh::Result w = cwbvh::write_file_atomic(stats_json, json.data(), json.size()); !w.ok()) {
+            std::fprintf(stderr, "cwbvhc: error: %s (cannot write the statistics; %s was written)\n",
+                         w.message.c_str(), options.output.c_str());
             return 1;
         }
     }

@@ -101,6 +101,18 @@ Result import_openmesh(const std::string& path, const ImportOptions& options,
                                    std::vector<std::string>& warnings);
 Result import_draco_file(const std::string& path, RawInput& out);
 
+/// The files an input names besides itself, which an output must never replace (cwbvhc
+/// -o over a glTF's external buffer would destroy the scene's data; over a texture or an
+/// OBJ's material library, the user's): a glTF's buffer and image URIs that are not data:
+/// URIs (as written and percent-decoded, relative to the glTF's folder), an OBJ's
+/// `mtllib` files. Best effort and never an error: an input it cannot read or parse gives
+/// none (the import then reports it).
+std::vector<std::string> referenced_files(const std::string& input);
+/// The inputs followed by every file they reference (the paths an output must differ from).
+std::vector<std::string> inputs_and_referenced_files(const std::vector<std::string>& inputs);
+std::vector<std::string> gltf_referenced_files(const std::string& path);
+std::vector<std::string> obj_referenced_files(const std::string& path);
+
 /// The whole file in one read (the readers' input; the importers used a
 /// byte-by-byte stream iterator, 26 ms of the dragon's 0.1 s import).
 /// kIoError: "cannot open: <why>", "is a FIFO, not a regular file" (any non-regular file
