@@ -6,6 +6,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <utility>
 
 #include "cwbvh/format/file_io.h"
@@ -15,13 +16,24 @@ namespace cwbvh {
 Expected<AtomicOutput> AtomicOutput::create(const std::string& path) {
     static std::atomic<uint64_t> counter{0};
     AtomicOutput out;
-    out.path_ = path;
-    out.tmp_ = path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter++);
+    // An output that is a symlink is written through: the file it names is replaced, and the
+    // link stays (a rename over the link would replace the link itself).
+    // A dangling link gets its target created. Chains are followed (40 links, as the kernel).
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    fs::path p = path;
+    for (int hops = 0; hops < 40 && fs::is_symlink(fs::symlink_status(p, ec)); ++hops) {
+        const fs::path target = fs::read_symlink(p, ec);
+        if (ec) break;
+        p = target.is_absolute() ? target : p.parent_path() / target;
+    }
+    out.path_ = p.lexically_normal().string();
+    out.tmp_ = out.path_ + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter++);
     out.fd_ = ::open(out.tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
     if (out.fd_ < 0) {
         const int e = errno;
         out.tmp_.clear();  // nothing was created: nothing to remove
-        return fail(rule::kOpenFailed, path + ": cannot create " + path + ".tmp.*: " + std::strerror(e));
+        return fail(rule::kOpenFailed, path + ": cannot create " + out.path_ + ".tmp.*: " + std::strerror(e));
     }
     return out;
 }

@@ -115,6 +115,9 @@ Result check_output_path(const std::string& output, const std::vector<std::strin
     const fs::file_status status = fs::status(output, ec);  // follows symlinks
     if (fs::is_directory(status)) return bad("output is a directory");
     if (fs::exists(status) && !fs::is_regular_file(status)) return bad("output exists and is not a regular file");
+    // A file its owner made read-only stays as it is (the write goes to a new file renamed over
+    // it, which the folder's permission alone would allow).
+    if (fs::exists(status) && ::access(output.c_str(), W_OK) != 0) return bad("output exists and is not writable");
     // Its folder must exist, so that a long job does not end in "cannot create".
     const fs::path folder = fs::path(output).parent_path();
     if (!folder.empty() && !fs::is_directory(fs::status(folder, ec)))

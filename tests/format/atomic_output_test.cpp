@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <sys/resource.h>
+#include <unistd.h>
 
 #include <csignal>
 #include <filesystem>
@@ -84,6 +85,35 @@ TEST(AtomicOutput, AFailedWriteLeavesTheOldFileAndNoPartialFile) {
     EXPECT_EQ(r.message.rfind(path + ": write failed: ", 0), 0u) << r.message;
     EXPECT_EQ(slurp(path), "previous");
     EXPECT_EQ(entries(dir, "big.bin"), std::vector<std::string>{"big.bin"});
+}
+
+// A symlinked output is written through (the link stays, its target gets the bytes), and a
+// read-only output is refused by check_output_path, which every tool calls first (a rename
+// over it needs only the folder's permission).
+TEST(AtomicOutput, SymlinksAreWrittenThroughAndReadOnlyOutputsRefused) {
+    const std::string dir = test::temp_dir() + "/atomic_link";
+    fs::remove_all(dir);
+    fs::create_directories(dir + "/real");
+    { std::ofstream(dir + "/real/target.bin") << "old"; }
+    fs::create_symlink("real/target.bin", dir + "/link.bin");
+    ASSERT_TRUE(write_file_atomic(dir + "/link.bin", "new", 3).ok());
+    EXPECT_TRUE(fs::is_symlink(dir + "/link.bin"));
+    EXPECT_EQ(slurp(dir + "/real/target.bin"), "new");
+    EXPECT_EQ(entries(dir + "/real", "target.bin"), std::vector<std::string>{"target.bin"});
+    // A dangling link: its target is created.
+    fs::create_symlink("real/fresh.bin", dir + "/dangling.bin");
+    ASSERT_TRUE(write_file_atomic(dir + "/dangling.bin", "x", 1).ok());
+    EXPECT_EQ(slurp(dir + "/real/fresh.bin"), "x");
+    if (::geteuid() != 0) {  // root writes anything
+        fs::permissions(dir + "/real/target.bin", fs::perms::owner_read);
+        const Result r = check_output_path(dir + "/real/target.bin", {});
+        EXPECT_FALSE(r.ok());
+        EXPECT_NE(r.message.find("output exists and is not writable"), std::string::npos) << r.message;
+    }
+    EXPECT_FALSE(check_output_path("", {}).ok());
+    const Result missing = check_output_path(dir + "/no/such/folder/out.bin", {});
+    EXPECT_NE(missing.message.find("output folder '" + dir + "/no/such/folder' does not exist"), std::string::npos)
+        << missing.message;
 }
 
 TEST(AtomicOutput, AnUncreatableOutputNamesThePath) {
