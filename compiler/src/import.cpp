@@ -103,9 +103,14 @@ namespace {
 
 /// The "<path>: no triangles (all N dropped: ...)" message when `scene` gained no triangle.
 Result no_triangles(const std::string& path, uint64_t read, const std::map<std::string, uint64_t>& dropped,
-                    const std::map<std::string, uint64_t>& dropped_before) {
+                    const std::map<std::string, uint64_t>& dropped_before,
+                    const std::map<std::string, uint64_t>& skipped) {
     std::string error = path + ": no triangles";
-    if (read > 0) {
+    if (read == 0 && !skipped.empty()) {  // points or lines only: say so
+        error += " (only";
+        for (const auto& [kind, n] : skipped) error += " " + std::to_string(n) + " " + kind;
+        error += " primitives, which are not traced)";
+    } else if (read > 0) {
         error += " (all " + std::to_string(read) + " dropped:";
         for (const auto& [reason, n] : dropped) {
             const auto it = dropped_before.find(reason);
@@ -124,7 +129,8 @@ Result append_input(const std::string& path, uint32_t i, const RawInput& raw, Sc
     if (const Result c = clean_and_append(raw, i, out); !c.ok()) return Result::fail(c.status, 0, path + ": " + c.message);
     out.input_names.push_back(path);
     if (out.triangle_count() == before)
-        return no_triangles(path, out.input_triangles - read_before, out.dropped, dropped_before);
+        return no_triangles(path, out.input_triangles - read_before, out.dropped, dropped_before,
+                            raw.skipped_primitives);
     return Result::success();
 }
 
@@ -150,7 +156,7 @@ Result clean_instanced(const std::string& path, const RawInstanced& raw, Instanc
         out.placements.push_back(Placement{index[p.mesh], p.node, p.object_to_world});
     }
     out.input_names.push_back(path);
-    if (out.meshes.empty()) return no_triangles(path, out.input_triangles, out.dropped, {});
+    if (out.meshes.empty()) return no_triangles(path, out.input_triangles, out.dropped, {}, {});
     return Result::success();
 }
 

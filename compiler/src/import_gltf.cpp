@@ -1017,6 +1017,10 @@ Result import_gltf(const std::string& path, const ImportOptions& options, RawInp
             return bad("not a valid glTF 2.0 file: " + (lines.empty() ? "tinygltf failed" : lines.front()));
         }
         for (const std::string& e : split_lines(err)) warnings.push_back("tinygltf: " + e);
+        // glTF 1.0 (asset.version "1.0", or no asset: 1.0 made it optional) parses far enough
+        // to give "no triangles"; say what it is instead.
+        if (model.asset.version.empty() || model.asset.version[0] != '2')
+            return bad("glTF version '" + model.asset.version + "' is not supported (glTF 2.0 only)");
 
         for (const std::string& ext : model.extensionsRequired) {
             if (extension_supported(ext)) continue;

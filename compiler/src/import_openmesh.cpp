@@ -629,6 +629,11 @@ Result import_openmesh(const std::string& path, const ImportOptions& options, Ra
         return bad("no triangles: the reader rejected all " + std::to_string(out.rejected_by_reader) +
                    " faces the file declares (repeated, invalid or unparsable vertex indices; the warnings "
                    "above give the reader's messages)");
+    if (prim.triangles.empty() && !out.skipped_primitives.empty()) {
+        std::string what = "no triangles (only";
+        for (const auto& [kind, n] : out.skipped_primitives) what += " " + std::to_string(n) + " " + kind;
+        return bad(what + " elements, which are not traced)");
+    }
     if (prim.triangles.empty()) return bad("no triangles");
     out.primitives.push_back(std::move(prim));
     return Result::success();

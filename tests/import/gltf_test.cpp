@@ -452,6 +452,19 @@ TEST(Gltf, DeeplyNestedJsonIsAnErrorNotACrash) {
     }
 }
 
+// A glTF 1.0 file said "no triangles"; it now says what it is.
+TEST(Gltf, Version1IsNamed) {
+    TempDir dir;
+    for (const char* version : {"1.0", "1.1"}) {
+        const std::string p =
+            dir.write("v1.gltf", std::string("{\"asset\":{\"version\":\"") + version + "\"},\"meshes\":{},\"nodes\":{}}");
+        const Result r = import_files({p});
+        ASSERT_FALSE(r.ok);
+        EXPECT_NE(r.error.find(": glTF version '"), std::string::npos) << r.error;
+        EXPECT_NE(r.error.find("is not supported (glTF 2.0 only)"), std::string::npos) << r.error;
+    }
+}
+
 TEST(Gltf, NoImageIsEverDecoded) {
     TempDir dir;
     GltfBuilder b;

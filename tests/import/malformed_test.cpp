@@ -279,5 +279,14 @@ TEST(Malformed, StlInconsistentOrCutIsAnError) {
     EXPECT_EQ(okb.scene.triangle_count(), 1u);
 }
 
+// An OBJ of points (or lines) only said "no triangles"; it now says what it holds.
+TEST(Malformed, ObjOfPointsOnlySaysSo) {
+    TempDir dir;
+    const std::string p = dir.write("p.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\np 1\np 2\nl 1 2\n");
+    const auto r = import_files({p});
+    ASSERT_FALSE(r.ok);
+    EXPECT_EQ(r.error, p + ": no triangles (only 1 lines 2 points elements, which are not traced)");
+}
+
 }  // namespace
 }  // namespace cwbvh::compiler::test
