@@ -13,10 +13,12 @@
 // constants where the view has them (DeviceScene::view(): on sm_80 and later, as the
 // wavefront kernels), the watertight triangle test by default. With it a hit is the CPU
 // reference's hit bit for bit (tests/kernels/query_test.cpp on the host, and on a GPU
-// cwbvh_gpu_check against trace_cwbvh_cpu / trace_two_level_cpu): the watertight test
-// accepts a hit only where the exact point lies in the triangle within [tmin, tmax], so
-// inside every conservative box above it, and both node tests visit it in the same
-// order. TriangleTest::kFast gives no such guarantee.
+// cwbvh_gpu_check against trace_cwbvh_cpu / trace_two_level_cpu): the watertight test's
+// answer depends on the ray and the triangle alone (no order, no FMA contraction), its t
+// is the double plane distance (within ~2^-52 times the cancellation of the exact one;
+// spec/rays.md "Defined answers"), and both node tests are conservative by more than
+// that error, so they find the same hits, visited in the same order.
+// TriangleTest::kFast gives no such guarantee.
 //
 // What it does not do: the wavefront kernels' warp-level work (dynamic ray fetch,
 // triangle postponing, the stack in shared memory). The stack is the calling thread's

@@ -1,11 +1,13 @@
 // Ray-triangle tests, chosen at compile time by TriangleTest.
 //   kWatertight: Woop, Benthin, Wald 2013, "Watertight Ray/Triangle Intersection"
 //                (JCGT 2(1)), with the paper's double-precision fallback.
-//   kFast:       Moller, Trumbore 1997, with no absolute epsilon anywhere (nothing
-//                depends on the scene's scale); not watertight.
-// Both accept hits with tmin <= t <= tmax (closed) and report u, v as the
-// barycentric weights of v1 and v2. A triangle whose plane contains the ray
-// (det == 0) is a miss in both.
+//   kFast:       Moller, Trumbore 1997, with no absolute epsilon; not watertight. Its
+//                float determinant is a product of two edges and the direction
+//                (~L^2 |d|): where that under- or overflows, the triangle is missed
+//                (with |d| ~ L: L outside about 2^-40 .. 2^40; spec/rays.md).
+// Both accept hits with tmin <= t <= tmax (closed), t finite, and report u, v as the
+// barycentric weights of v1 and v2. A triangle whose plane contains the ray is a miss
+// in both (watertight: plane_t certifies the sign of n.d; fast: det == 0).
 #pragma once
 
 #include <cmath>
@@ -103,7 +105,19 @@ CWBVH_HD CWBVH_INLINE float shear_row(const float a[3], const float m[3]) {
 /// 2^-53, so the relative error is ~2^-52 x the cancellation |v - o| / (t cos)
 /// (~2^11 on that ray): float(t) is within 1 ulp of the exact t up to ~2^28.
 /// Nearest rounding everywhere (mul_rn/add_rn/sub_rn: never contracted; IEEE '/'),
-/// so host and device agree bitwise. False when the ray is parallel to the plane.
+/// so host and device agree bitwise.
+///
+/// False when the ray may lie in the plane: the sign of n.d must be certain. Each
+/// computed n component errs from the exact cross product of the exact edges by at most
+/// 4u (P = |first product| + |second product|, u = 2^-53: the edges' roundings, the two
+/// products', the difference's), and the dot product adds 3u |n_i d_i| terms, so
+/// |den - DEN| <= ~7u sum P_i |d_i| (no under- or overflow: floats' differences and their
+/// products lie in [2^-298, 2^387]). With 2^-49 = 16u in place of 7u, |den| > B proves
+/// DEN != 0 with its sign. A ray in the plane (DEN = 0 exactly) then never passes: its
+/// float edge functions are rounding noise, and so was n.d; t = noise / noise was reported
+/// as a hit (spec/rays.md: such a ray is not hit; tests/traverse/triangle_edge_cases_test).
+/// The cost is rays within ~2^-49 (relative to the edges' products) of the plane's
+/// direction: they miss, where t would have been meaningless anyway.
 CWBVH_HD CWBVH_INLINE bool plane_t(const WatertightRay& w, const float* v0, const float* v1, const float* v2,
                                    double& t) {
     const double px = v0[0], py = v0[1], pz = v0[2];
@@ -111,14 +125,19 @@ CWBVH_HD CWBVH_INLINE bool plane_t(const WatertightRay& w, const float* v0, cons
     const double e1z = sub_rn(double(v1[2]), pz);
     const double e2x = sub_rn(double(v2[0]), px), e2y = sub_rn(double(v2[1]), py);
     const double e2z = sub_rn(double(v2[2]), pz);
-    const double nx = sub_rn(mul_rn(e1y, e2z), mul_rn(e1z, e2y));
-    const double ny = sub_rn(mul_rn(e1z, e2x), mul_rn(e1x, e2z));
-    const double nz = sub_rn(mul_rn(e1x, e2y), mul_rn(e1y, e2x));
+    const double ax = mul_rn(e1y, e2z), bx = mul_rn(e1z, e2y);
+    const double ay = mul_rn(e1z, e2x), by = mul_rn(e1x, e2z);
+    const double az = mul_rn(e1x, e2y), bz = mul_rn(e1y, e2x);
+    const double nx = sub_rn(ax, bx), ny = sub_rn(ay, by), nz = sub_rn(az, bz);
+    const double dx = w.dir[0], dy = w.dir[1], dz = w.dir[2];
     const double num = add_rn(add_rn(mul_rn(nx, sub_rn(px, double(w.org[0]))), mul_rn(ny, sub_rn(py, double(w.org[1])))),
                               mul_rn(nz, sub_rn(pz, double(w.org[2]))));
-    const double den =
-        add_rn(add_rn(mul_rn(nx, double(w.dir[0])), mul_rn(ny, double(w.dir[1]))), mul_rn(nz, double(w.dir[2])));
-    if (den == 0.0 || den != den) return false;
+    const double den = add_rn(add_rn(mul_rn(nx, dx), mul_rn(ny, dy)), mul_rn(nz, dz));
+    const double bound =
+        mul_rn(add_rn(add_rn(mul_rn(add_rn(fabs(ax), fabs(bx)), fabs(dx)), mul_rn(add_rn(fabs(ay), fabs(by)), fabs(dy))),
+                      mul_rn(add_rn(fabs(az), fabs(bz)), fabs(dz))),
+               1.7763568394002505e-15);  // 2^-49
+    if (!(fabs(den) > bound)) return false;  // the plane may contain the ray (or NaN)
     t = num / den;
     return t == t;
 }
@@ -250,6 +269,11 @@ CWBVH_HD CWBVH_INLINE bool intersect_triangle_watertight(const WatertightRay& w,
     // rounding): the range is tested in double, then t is rounded.
     double dt;
     if (!plane_t(w, v0, v1, v2, dt) || !(dt >= double(tmin) && dt <= double(tmax))) return false;
+    // A t beyond the float range is no hit: a hit of t = +-inf reads as a miss in a Hit
+    // record, and a tmax of inf would then let every later triangle pass (the closest
+    // hit no longer the closest).
+    const float ft = float(dt);
+    if (!is_finite_f(ft)) return false;
     const float det = add_rn(add_rn(eu, ev), ew);
     const float adet = abs_f(det);
     // Float u, v only when all edge functions are nonzero and nothing is near under-
@@ -259,7 +283,7 @@ CWBVH_HD CWBVH_INLINE bool intersect_triangle_watertight(const WatertightRay& w,
     // path's (see above), so mixing the two paths keeps the mesh closed.
     if (eu != 0.0f && ev != 0.0f && ew != 0.0f && adet >= 5.42101086e-20f && adet <= 1.84467441e+19f) {
         const float rcp = 1.0f / det;
-        out.t = float(dt);
+        out.t = ft;
         out.u = mul_rn(ev, rcp);
         out.v = mul_rn(ew, rcp);
         return true;
@@ -270,7 +294,7 @@ CWBVH_HD CWBVH_INLINE bool intersect_triangle_watertight(const WatertightRay& w,
     if ((du < 0.0 || dv < 0.0 || dw < 0.0) && (du > 0.0 || dv > 0.0 || dw > 0.0)) return false;
     const double ddet = add_rn(add_rn(du, dv), dw);
     if (ddet == 0.0 || ddet != ddet) return false;  // ray in the triangle's plane, or NaN
-    out.t = float(dt);
+    out.t = ft;
     out.u = float(dv / ddet);
     out.v = float(dw / ddet);
     return true;
@@ -300,7 +324,7 @@ CWBVH_HD CWBVH_INLINE bool intersect_triangle_fast(const Ray& r, const float* v0
     const float v = (r.dir[0] * qv[0] + r.dir[1] * qv[1] + r.dir[2] * qv[2]) * inv;
     if (!(v >= 0.0f && u + v <= 1.0f)) return false;
     const float t = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) * inv;
-    if (!(t >= tmin && t <= tmax)) return false;
+    if (!(t >= tmin && t <= tmax) || !is_finite_f(t)) return false;  // +-inf: no hit (see the watertight test)
     out.t = t;
     out.u = u;
     out.v = v;
