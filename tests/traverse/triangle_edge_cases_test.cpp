@@ -22,9 +22,6 @@
 namespace cwbvh::test {
 namespace {
 
-using oracle::exact_det_sign;
-using oracle::exact_diff;
-using oracle::Exact2;
 
 bool watertight_hit(const Ray& r, const float* v0, const float* v1, const float* v2, TriangleHit& h) {
     const WatertightRay w = make_watertight_ray(r);
@@ -33,15 +30,7 @@ bool watertight_hit(const Ray& r, const float* v0, const float* v1, const float*
 
 /// Exactly coplanar: the oracle's three signed edge volumes are all exactly zero.
 bool exactly_coplanar(const Ray& r, const float* v0, const float* v1, const float* v2) {
-    Exact2 A[3], B[3], C[3];
-    for (int a = 0; a < 3; ++a) {
-        A[a] = exact_diff(v0[a], r.org[a]);
-        B[a] = exact_diff(v1[a], r.org[a]);
-        C[a] = exact_diff(v2[a], r.org[a]);
-    }
-    double u, v, w;
-    return exact_det_sign(B, C, r.dir, u) == 0 && exact_det_sign(C, A, r.dir, v) == 0 &&
-           exact_det_sign(A, B, r.dir, w) == 0;
+    return oracle::edge_volumes(r, v0, v1, v2).coplanar();
 }
 
 TEST(TriangleEdgeCases, TheAuditsCoplanarRaysMiss) {

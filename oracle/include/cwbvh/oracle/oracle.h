@@ -116,18 +116,34 @@ struct OracleTriangle {
     long double t = 0;
 };
 
-/// Does the line org + t*dir meet the triangle, and at which t (any t, no range).
-inline OracleTriangle oracle_triangle(const Ray& r, const float* v0, const float* v1, const float* v2) {
+/// The signed volumes of the ray against the triangle's edges (the scaled barycentrics of
+/// the line's crossing): exact signs, approximate values. All three signs 0: the ray lies
+/// in the triangle's plane.
+struct EdgeVolumes {
+    int su = 0, sv = 0, sw = 0;
+    double u = 0, v = 0, w = 0;
+    bool coplanar() const { return su == 0 && sv == 0 && sw == 0; }
+};
+
+inline EdgeVolumes edge_volumes(const Ray& r, const float* v0, const float* v1, const float* v2) {
     Exact2 A[3], B[3], C[3];
     for (int a = 0; a < 3; ++a) {
         A[a] = exact_diff(v0[a], r.org[a]);
         B[a] = exact_diff(v1[a], r.org[a]);
         C[a] = exact_diff(v2[a], r.org[a]);
     }
-    double u, v, w;
-    const int su = exact_det_sign(B, C, r.dir, u);
-    const int sv = exact_det_sign(C, A, r.dir, v);
-    const int sw = exact_det_sign(A, B, r.dir, w);
+    EdgeVolumes e;
+    e.su = exact_det_sign(B, C, r.dir, e.u);
+    e.sv = exact_det_sign(C, A, r.dir, e.v);
+    e.sw = exact_det_sign(A, B, r.dir, e.w);
+    return e;
+}
+
+/// Does the line org + t*dir meet the triangle, and at which t (any t, no range).
+inline OracleTriangle oracle_triangle(const Ray& r, const float* v0, const float* v1, const float* v2) {
+    const EdgeVolumes e = edge_volumes(r, v0, v1, v2);
+    const int su = e.su, sv = e.sv, sw = e.sw;
+    const double u = e.u, v = e.v, w = e.w;
     OracleTriangle out;
     if ((su < 0 || sv < 0 || sw < 0) && (su > 0 || sv > 0 || sw > 0)) return out;
     if (su == 0 && sv == 0 && sw == 0) return out;
