@@ -14,11 +14,10 @@
 #include "cwbvh/compiler/build.h"
 #include "cwbvh/compiler/compile.h"
 #include "cwbvh/compiler/core.h"
-#include "cwbvh/compiler/import.h"
-#include "cwbvh/format/file_io.h"
 #include "cwbvh/compiler/emit.h"
 #include "cwbvh/compiler/import.h"
 #include "cwbvh/compiler/model.h"
+#include "cwbvh/format/file_io.h"
 #include "cwbvh/compiler/progress.h"
 #include "cwbvh/compiler/two_level.h"
 

@@ -163,7 +163,7 @@ bool json_too_deep(const char* text, size_t size) {
             in_string = true;
         } else if (c == '[' || c == '{') {
             if (++depth > kMaxJsonDepth) return true;
-        } else if (c == ']' || c == '}') {
+        } else if ((c == ']' || c == '}') && depth > 0) {  // a stray closer does not buy depth
             --depth;
         }
     }
