@@ -10,6 +10,8 @@
 // header) or that a cheap line scan finds (OBJ `f` lines, ASCII STL `facet`
 // lines), reporting any difference as a warning. Dropped faces are not in
 // Scene::input_triangles (they never reach us).
+#include <strings.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cstdlib>
@@ -406,8 +408,12 @@ bool check_stl(const std::string& path, std::string& error) {
     if (!open_for_check(path, f, size, error)) return false;
     char head[84] = {};
     f.read(head, 84);
-    const bool solid = f.gcount() >= 5 && std::strncmp(head, "solid", 5) == 0;
-    if (f.gcount() == 84) {
+    // "solid" in any case, after any white space (what an ASCII STL starts with).
+    const std::streamsize got = f.gcount();
+    std::streamsize k = 0;
+    while (k < got && std::isspace(static_cast<unsigned char>(head[k]))) ++k;
+    const bool solid = got - k >= 5 && strncasecmp(head + k, "solid", 5) == 0;
+    if (got == 84) {
         uint32_t n = 0;
         std::memcpy(&n, head + 80, 4);
         if (84 + 50 * uint64_t(n) == size) return true;  // binary, consistent
@@ -427,6 +433,7 @@ bool check_stl(const std::string& path, std::string& error) {
     uint64_t facets = 0, vertices = 0, complete = 0;
     bool open = false;
     while (f >> word) {
+        for (char& c : word) c = char(std::tolower(static_cast<unsigned char>(c)));  // FACET, Vertex, ...
         if (word == "facet") {
             if (open) break;  // the previous facet never ended
             open = true;

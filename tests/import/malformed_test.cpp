@@ -273,6 +273,13 @@ TEST(Malformed, StlInconsistentOrCutIsAnError) {
     const auto ok = import_files({dir.write("ok.stl", "solid x\n" + facet + facet + "endsolid x\n")});
     ASSERT_TRUE(ok.ok) << ok.error;
     EXPECT_EQ(ok.scene.triangle_count(), 2u);
+    // Keywords in upper case after leading blanks, as some exporters write them: OpenMesh
+    // reads them, and so must the check.
+    const auto upper = import_files({dir.write(
+        "up.stl", "  SOLID X\nFACET NORMAL 0 0 1\nOUTER LOOP\nVERTEX 0 0 0\nVERTEX 1 0 0\nVERTEX 0 1 0\n"
+                  "ENDLOOP\nENDFACET\nENDSOLID X\n")});
+    ASSERT_TRUE(upper.ok) << upper.error;
+    EXPECT_EQ(upper.scene.triangle_count(), 1u);
     bin.replace(80, 4, u32(1));
     const auto okb = import_files({dir.write("okb.stl", bin)});
     ASSERT_TRUE(okb.ok) << okb.error;
