@@ -1,5 +1,6 @@
 // AtomicOutput (file_io.h): a temporary file beside the output, renamed over it when complete.
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -13,12 +14,11 @@
 
 namespace cwbvh {
 
-Expected<AtomicOutput> AtomicOutput::create(const std::string& path) {
-    static std::atomic<uint64_t> counter{0};
-    AtomicOutput out;
-    // An output that is a symlink is written through: the file it names is replaced, and the
-    // link stays (a rename over the link would replace the link itself).
+std::string output_target(const std::string& path) {
     // A dangling link gets its target created. Chains are followed (40 links, as the kernel).
+    // No lexical normalisation: "dir/.." must stay for the kernel to resolve through a
+    // symlinked dir, as check_output_path's same_file does (dropping it lexically wrote
+    // another file than the one checked, and could replace an input).
     namespace fs = std::filesystem;
     std::error_code ec;
     fs::path p = path;
@@ -27,7 +27,15 @@ Expected<AtomicOutput> AtomicOutput::create(const std::string& path) {
         if (ec) break;
         p = target.is_absolute() ? target : p.parent_path() / target;
     }
-    out.path_ = p.lexically_normal().string();
+    return p.string();
+}
+
+Expected<AtomicOutput> AtomicOutput::create(const std::string& path) {
+    static std::atomic<uint64_t> counter{0};
+    AtomicOutput out;
+    // An output that is a symlink is written through: the file it names is replaced, and the
+    // link stays (a rename over the link would replace the link itself).
+    out.path_ = output_target(path);
     out.tmp_ = out.path_ + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter++);
     out.fd_ = ::open(out.tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
     if (out.fd_ < 0) {
@@ -35,6 +43,10 @@ Expected<AtomicOutput> AtomicOutput::create(const std::string& path) {
         out.tmp_.clear();  // nothing was created: nothing to remove
         return fail(rule::kOpenFailed, path + ": cannot create " + out.path_ + ".tmp.*: " + std::strerror(e));
     }
+    // A file that is replaced keeps its permission bits (not its owner, ACLs or other hard
+    // links: the output is a new file).
+    struct stat old {};
+    if (::stat(out.path_.c_str(), &old) == 0) (void)::fchmod(out.fd_, old.st_mode & 07777);
     return out;
 }
 

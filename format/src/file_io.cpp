@@ -118,10 +118,12 @@ Result check_output_path(const std::string& output, const std::vector<std::strin
     // A file its owner made read-only stays as it is (the write goes to a new file renamed over
     // it, which the folder's permission alone would allow).
     if (fs::exists(status) && ::access(output.c_str(), W_OK) != 0) return bad("output exists and is not writable");
-    // Its folder must exist, so that a long job does not end in "cannot create".
-    const fs::path folder = fs::path(output).parent_path();
-    if (!folder.empty() && !fs::is_directory(fs::status(folder, ec)))
-        return bad("output folder '" + folder.string() + "' does not exist");
+    // The folder the file is written in (AtomicOutput: a temporary file there, renamed) must
+    // exist and be writable, so that a long job does not end in "cannot create".
+    const fs::path folder = fs::path(output_target(output)).parent_path();
+    const std::string where = folder.empty() ? std::string(".") : folder.string();
+    if (!fs::is_directory(fs::status(where, ec))) return bad("output folder '" + where + "' does not exist");
+    if (::access(where.c_str(), W_OK | X_OK) != 0) return bad("output folder '" + where + "' is not writable");
     return Result::success();
 }
 

@@ -104,6 +104,22 @@ TEST(AtomicOutput, SymlinksAreWrittenThroughAndReadOnlyOutputsRefused) {
     fs::create_symlink("real/fresh.bin", dir + "/dangling.bin");
     ASSERT_TRUE(write_file_atomic(dir + "/dangling.bin", "x", 1).ok());
     EXPECT_EQ(slurp(dir + "/real/fresh.bin"), "x");
+    // "link/.." is resolved by the kernel (link's target's parent), as same_file resolves it:
+    // a lexical "a/link/.." -> "a" wrote another file than the one checked (a review found
+    // cwbvhc replacing its own input through it).
+    fs::create_directories(dir + "/work");
+    fs::create_directories(dir + "/real/sub");
+    fs::create_symlink("../real/sub", dir + "/work/link");
+    { std::ofstream(dir + "/work/in.stl") << "input"; }
+    ASSERT_TRUE(check_output_path(dir + "/work/link/../in.stl", {dir + "/work/in.stl"}).ok());
+    ASSERT_TRUE(write_file_atomic(dir + "/work/link/../in.stl", "out", 3).ok());
+    EXPECT_EQ(slurp(dir + "/work/in.stl"), "input");
+    EXPECT_EQ(slurp(dir + "/real/in.stl"), "out");
+    // A replaced file keeps its permission bits.
+    fs::permissions(dir + "/real/in.stl", fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
+    ASSERT_TRUE(write_file_atomic(dir + "/real/in.stl", "again", 5).ok());
+    EXPECT_EQ(fs::status(dir + "/real/in.stl").permissions(),
+              fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
     if (::geteuid() != 0) {  // root writes anything
         fs::permissions(dir + "/real/target.bin", fs::perms::owner_read);
         const Result r = check_output_path(dir + "/real/target.bin", {});

@@ -62,11 +62,19 @@ bool same_file(const std::string& a, const std::string& b);
 /// "<output>: output folder '<folder>' does not exist".
 Result check_output_path(const std::string& output, const std::vector<std::string>& others);
 
+/// The file an output path writes: `path`, or the end of the symlink chain it names (a
+/// dangling link's target; relative targets joined to the link's folder, never normalised).
+std::string output_target(const std::string& path);
+
 /// An output that replaces `path` only when it is complete: the bytes go to a new file beside it
 /// (`path.tmp.<pid>.<n>`, created with O_EXCL), and commit() renames that over `path` (atomic on
 /// one file system). A failed write or commit, or destruction before commit(), removes the
 /// temporary file: `path` keeps its old contents, or stays absent; never a partial file that looks
 /// valid. The one write path of every tool (the .cwbvh writer, ray, hit and image files).
+/// A replaced file keeps its permission bits; it is a new file all the same (another owner,
+/// no ACLs, no longer shared with its other hard links), and the rename is not preceded by
+/// an fsync: whole or absent after the process dies, not after a power loss. A symlinked
+/// output is written through (its target is replaced; the link stays).
 /// Errors name the file and the reason (errno): rule 1001 (cannot create), 1005 (write, close or
 /// rename failed).
 class AtomicOutput {
