@@ -137,7 +137,8 @@ Result compile_phases(const CompileOptions& options, CompileStats& stats, const 
                       Progress* progress) {
     // The output replaces no input and no file an input names (a glTF's buffers and images, an
     // OBJ's material libraries): checked before anything is read (cwbvhc and Python alike).
-    if (Result r = check_output_path(options.output, inputs_and_referenced_files(options.inputs)); !r.ok()) return r;
+    if (Result r = check_output_path(options.output, options.inputs); !r.ok()) return r;
+    if (Result r = check_output_not_referenced(options.output, referenced_files(options.inputs)); !r.ok()) return r;
     PhaseTimer timer(stats, on_phase, progress);
 
     Scene scene;

@@ -74,10 +74,11 @@ Result import_one(const std::string& path, const ImportOptions& options, RawInpu
 
 }  // namespace
 
-std::vector<std::string> inputs_and_referenced_files(const std::vector<std::string>& inputs) {
-    std::vector<std::string> all = inputs;
+std::vector<std::string> referenced_files(const std::vector<std::string>& inputs) {
+    std::vector<std::string> all;
     for (const std::string& input : inputs)
-        for (std::string& f : referenced_files(input)) all.push_back(std::move(f));
+        for (std::string& f : referenced_files(input))
+            if (all.size() < kMaxReferencedFiles) all.push_back(std::move(f));
     return all;
 }
 

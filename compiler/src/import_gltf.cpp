@@ -968,6 +968,7 @@ std::vector<std::string> gltf_referenced_files(const std::string& path) {
             if (!item.is_object() || !item.contains("uri") || !item["uri"].is_string()) continue;
             const std::string uri = item["uri"].get<std::string>();
             if (uri.empty() || uri.rfind("data:", 0) == 0) continue;
+            if (out.size() >= kMaxReferencedFiles) return out;
             for (const std::string& u : {uri, percent_decoded(uri)})
                 out.push_back(!u.empty() && u[0] == '/' ? u : dir + u);
         }

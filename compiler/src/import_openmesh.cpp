@@ -434,6 +434,10 @@ bool check_stl(const std::string& path, std::string& error) {
     bool open = false;
     while (f >> word) {
         for (char& c : word) c = char(std::tolower(static_cast<unsigned char>(c)));  // FACET, Vertex, ...
+        if (word == "solid" || word == "endsolid") {  // the name may hold any word ("my facet model")
+            std::getline(f, word);
+            continue;
+        }
         if (word == "facet") {
             if (open) break;  // the previous facet never ended
             open = true;
@@ -557,18 +561,25 @@ bool check_off(const std::string& path, std::string& error) {
 }  // namespace
 
 std::vector<std::string> obj_referenced_files(const std::string& path) {
-    // OpenMesh's OBJ reader opens each `mtllib` name relative to the OBJ's folder.
+    // OpenMesh's OBJ reader opens the trimmed rest of an `mtllib` line as ONE name, joined to
+    // the OBJ's folder (OBJReader.cc: getline, trimString, path_ + matFile). The names split
+    // at blanks are kept as well (other readers take several libraries per line).
     std::vector<std::string> out;
     std::ifstream f(path, std::ios::binary);
     if (!f) return out;
     const size_t slash = path.find_last_of('/');
     const std::string dir = slash == std::string::npos ? "" : path.substr(0, slash + 1);
     std::string line, keyword, name;
-    while (std::getline(f, line)) {
+    while (out.size() < kMaxReferencedFiles && std::getline(f, line)) {
         std::istringstream in(line);
         if (!(in >> keyword) || keyword != "mtllib") continue;
-        while (in >> name) out.push_back(!name.empty() && name[0] == '/' ? name : dir + name);
-        if (out.size() > 1000) break;  // a hostile file: enough to guard any real output
+        std::string rest;
+        std::getline(in, rest);
+        const size_t b = rest.find_first_not_of(" \t\r\n"), e = rest.find_last_not_of(" \t\r\n");
+        if (b == std::string::npos) continue;
+        out.push_back(dir + rest.substr(b, e - b + 1));
+        std::istringstream names(rest);
+        while (out.size() < kMaxReferencedFiles && names >> name) out.push_back(dir + name);
     }
     return out;
 }

@@ -127,4 +127,16 @@ Result check_output_path(const std::string& output, const std::vector<std::strin
     return Result::success();
 }
 
+Result check_output_not_referenced(const std::string& output, const std::vector<std::string>& referenced) {
+    struct stat out {};
+    if (::stat(output_target(output).c_str(), &out) != 0) return Result::success();
+    for (const std::string& ref : referenced) {
+        struct stat st {};
+        if (::stat(ref.c_str(), &st) == 0 && st.st_dev == out.st_dev && st.st_ino == out.st_ino)
+            return Result::fail(Status::kInvalidArgument, 0,
+                                output + ": output is '" + ref + "', which the input names; refusing to overwrite it");
+    }
+    return Result::success();
+}
+
 }  // namespace cwbvh

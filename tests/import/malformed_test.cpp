@@ -273,6 +273,10 @@ TEST(Malformed, StlInconsistentOrCutIsAnError) {
     const auto ok = import_files({dir.write("ok.stl", "solid x\n" + facet + facet + "endsolid x\n")});
     ASSERT_TRUE(ok.ok) << ok.error;
     EXPECT_EQ(ok.scene.triangle_count(), 2u);
+    // A name after solid / endsolid may hold any word, "facet" included.
+    const auto named = import_files({dir.write("named.stl", "solid my facet model\n" + facet + "endsolid my facet model\n")});
+    ASSERT_TRUE(named.ok) << named.error;
+    EXPECT_EQ(named.scene.triangle_count(), 1u);
     // Keywords in upper case after leading blanks, as some exporters write them: OpenMesh
     // reads them, and so must the check.
     const auto upper = import_files({dir.write(

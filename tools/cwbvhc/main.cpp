@@ -147,11 +147,16 @@ int main(int argc, char** argv) {
 
     // Bad input rather than usage (exit 1): the arguments are well formed; what is wrong is the
     // files they name, which is often only visible on disk (a symlink, a hard link).
-    std::vector<std::string> named = cwbvh::compiler::inputs_and_referenced_files(options.inputs);
+    // compile() checks the .cwbvh against the files the inputs name (a glTF's buffers and
+    // images, an OBJ's materials); the statistics file is checked here the same way.
+    std::vector<std::string> named = options.inputs;
     cwbvh::Result output_check = cwbvh::check_output_path(options.output, named);
     if (output_check.ok() && !stats_json.empty()) {
         named.push_back(options.output);
         output_check = cwbvh::check_output_path(stats_json, named);
+        if (output_check.ok())
+            output_check = cwbvh::check_output_not_referenced(stats_json,
+                                                              cwbvh::compiler::referenced_files(options.inputs));
     }
     if (!output_check.ok()) {
         std::fprintf(stderr, "cwbvhc: error: %s\n", output_check.message.c_str());

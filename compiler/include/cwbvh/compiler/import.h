@@ -108,8 +108,10 @@ Result import_draco_file(const std::string& path, RawInput& out);
 /// `mtllib` files. Best effort and never an error: an input it cannot read or parse gives
 /// none (the import then reports it).
 std::vector<std::string> referenced_files(const std::string& input);
-/// The inputs followed by every file they reference (the paths an output must differ from).
-std::vector<std::string> inputs_and_referenced_files(const std::vector<std::string>& inputs);
+/// Every file the inputs reference (referenced_files of each), at most kMaxReferencedFiles
+/// in all (a hostile file may name millions; each costs a stat in check_output_not_referenced).
+std::vector<std::string> referenced_files(const std::vector<std::string>& inputs);
+inline constexpr size_t kMaxReferencedFiles = 65536;
 std::vector<std::string> gltf_referenced_files(const std::string& path);
 std::vector<std::string> obj_referenced_files(const std::string& path);
 

@@ -62,6 +62,13 @@ bool same_file(const std::string& a, const std::string& b);
 /// "<output>: output folder '<folder>' does not exist".
 Result check_output_path(const std::string& output, const std::vector<std::string>& others);
 
+/// An output must not replace a file the inputs name (a glTF's buffers and images, an OBJ's
+/// material library). Those can be many, with long hostile paths, so they are compared by
+/// one stat each (device and inode) against the output's target, and only when that exists
+/// (a missing output replaces nothing). Error (kInvalidArgument, rule 0): "<output>: output
+/// is '<file>', which the input names; refusing to overwrite it".
+Result check_output_not_referenced(const std::string& output, const std::vector<std::string>& referenced);
+
 /// The file an output path writes: `path`, or the end of the symlink chain it names (a
 /// dangling link's target; relative targets joined to the link's folder, never normalised).
 std::string output_target(const std::string& path);

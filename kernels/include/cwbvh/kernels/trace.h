@@ -6,7 +6,7 @@
 // Kernels (kernels/src/trace.cu, loop in kernels/include/cwbvh/kernels/traverse_gpu.h):
 //   trace      - CWBVH, Ylitie et al. 2017: persistent warps, dynamic ray fetch,
 //                shared-memory stack with local spill, triangle postponing.
-//   trace_bvh2 - baseline: Aila, Karras and Laine 2012 (kepler_dynamic_fetch:
+//   trace_bvh2 - baseline: Aila, Laine and Karras 2012 (kepler_dynamic_fetch:
 //                speculative while-while, dynamic fetch) over the BV2L section
 //                (cwbvhc --keep-sbvh) or a legacy BVH2 section; 64-byte nodes.
 //   trace_two_level - a two-level (instanced) file: the same CWBVH loop entering

@@ -111,8 +111,8 @@ CWBVH_HD CWBVH_INLINE float shear_row(const float a[3], const float m[3]) {
 /// computed n component errs from the exact cross product of the exact edges by at most
 /// 4u (P = |first product| + |second product|, u = 2^-53: the edges' roundings, the two
 /// products', the difference's), and the dot product adds 3u |n_i d_i| terms, so
-/// |den - DEN| <= ~7u sum P_i |d_i| (no under- or overflow: floats' differences and their
-/// products lie in [2^-298, 2^387]). With 2^-49 = 16u in place of 7u, |den| > B proves
+/// |den - DEN| <= ~7u sum P_i |d_i| (no under- or overflow: floats' differences, their
+/// products and the n_i d_i terms lie in [2^-447, 2^387], far inside double's range). With 2^-49 = 16u in place of 7u, |den| > B proves
 /// DEN != 0 with its sign. A ray in the plane (DEN = 0 exactly) then never passes: its
 /// float edge functions are rounding noise, and so was n.d; t = noise / noise was reported
 /// as a hit (spec/rays.md: such a ray is not hit; tests/traverse/triangle_edge_cases_test).

@@ -17,6 +17,7 @@
 // for the closest-hit choice with a tolerance (ties are OK).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -194,6 +195,11 @@ inline OracleResult oracle_trace(const Ray& r, const TriangleRecord* tris, size_
         if (!o.hit) continue;
         if (std::fabs(o.t - r.tmin) <= tol || std::fabs(o.t - r.tmax) <= tol) res.near_range_end = true;
         if (o.t < r.tmin || o.t > r.tmax) continue;
+        // A t beyond the float range is no hit (spec/rays.md): what the float RN(t) of the
+        // traversal would make +-inf. Near the edge, the traversal's t rounds too: flagged.
+        constexpr long double kFltMax = 3.40282346638528859811704183484516925e+38L;
+        if (std::fabs(o.t) > kFltMax * (1 + 1e-6L)) continue;
+        if (std::fabs(o.t) > kFltMax * (1 - 1e-6L)) res.near_range_end = true;
         hits.push_back({o.t, tris[i].prim});
         if (o.t < res.t) {
             res.t = o.t;
