@@ -117,11 +117,15 @@ std::vector<Ray> camera_rays(const Camera& c, uint32_t width, uint32_t height) {
 }
 
 PrimTable::PrimTable(const TriangleRecord* tris, size_t count) : tris_(tris) {
+    // A valid file's prims lie below its stored triangle count, itself at most the TRIS
+    // count; a larger one (records changed after validation, e.g. a mapped file rewritten in
+    // place) is left out, instead of sizing the table by it (2^32 entries: 16 GiB).
     uint32_t max_prim = 0;
-    for (size_t i = 0; i < count; ++i) max_prim = tris[i].prim > max_prim ? tris[i].prim : max_prim;
+    for (size_t i = 0; i < count; ++i)
+        if (tris[i].prim < count) max_prim = tris[i].prim > max_prim ? tris[i].prim : max_prim;
     index_.assign(count ? size_t(max_prim) + 1 : 0, kMissPrim);
     for (size_t i = 0; i < count; ++i)
-        if (index_[tris[i].prim] == kMissPrim) index_[tris[i].prim] = uint32_t(i);
+        if (tris[i].prim < count && index_[tris[i].prim] == kMissPrim) index_[tris[i].prim] = uint32_t(i);
 }
 
 const TriangleRecord* PrimTable::find(uint32_t prim) const {

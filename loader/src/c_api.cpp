@@ -43,6 +43,8 @@ cwbvh_status cwbvh_open(const char* path, const cwbvh_open_options* options, cwb
     *out = nullptr;
     if (path == nullptr) return CWBVH_ERROR_INVALID_ARGUMENT;
     if (options != nullptr && options->struct_size < sizeof(cwbvh_open_options)) return CWBVH_ERROR_INVALID_ARGUMENT;
+    // reserved is 0 (the header): a later version may give it a meaning that this one ignores.
+    if (options != nullptr && options->reserved != 0) return CWBVH_ERROR_INVALID_ARGUMENT;
     try {
         auto* handle = new cwbvh_file;
         *out = handle;
@@ -72,7 +74,10 @@ uint32_t cwbvh_error_rule(const cwbvh_file* file) { return file ? file->rule : 0
 const char* cwbvh_error_message(const cwbvh_file* file) {
     return file ? file->message.c_str() : "no handle (invalid argument or out of memory)";
 }
-const char* cwbvh_status_string(cwbvh_status status) { return cwbvh::status_name(cwbvh::Status(status)); }
+const char* cwbvh_status_string(cwbvh_status status) {
+    if (status == CWBVH_ERROR_OUT_OF_MEMORY) return "out of memory";  // the C API's own status
+    return cwbvh::status_name(cwbvh::Status(status));
+}
 
 const void* cwbvh_nodes(const cwbvh_file* f, uint64_t* n) { return section_ptr<void>(f, cwbvh::kSectionNodes, n, 80); }
 const void* cwbvh_triangles(const cwbvh_file* f, uint64_t* n) {

@@ -27,6 +27,7 @@ import math as _math
 import numpy as _np
 
 from . import _arrays, _cwbvh
+from ._paths import fspath as _fspath
 from ._cwbvh import Error, built_with_cuda, gpu_status
 from .rays import camera_rays, diffuse_rays, pack_rays, read_hits, read_rays, view, views
 
@@ -65,12 +66,12 @@ def compile(inputs, output, threads=None, progress=None, **options):  # noqa: A0
     """
     if isinstance(inputs, (str, bytes)) or hasattr(inputs, "__fspath__"):
         inputs = [inputs]
-    inputs = [str(p) for p in inputs]
+    inputs = [_fspath(p, "inputs") for p in inputs]
     if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
         raise ValueError("threads must be None or a positive integer, got %r" % (threads,))
     if progress is not None and not callable(progress):
         raise TypeError("progress must be callable(phase, fraction, seconds)")
-    text = _cwbvh.compile(inputs, str(output), threads or 0, options, progress)
+    text = _cwbvh.compile(inputs, _fspath(output, "output"), threads or 0, options, progress)
     return _json.loads(text)
 
 
@@ -79,8 +80,10 @@ def open(path, deep=False, verify_checksums=True):  # noqa: A001 - cwbvh.open mi
     containment proof: D1-D4 per tree and, for a two-level file, D7 over the top level: mesh boxes,
     instance world boxes, top-level boxes, scene bounds). Single- and two-level files (format 1.2:
     the MESH, INST and TLAS sections are selected) open alike. Returns a Scene; an invalid file
-    raises cwbvh.Error with the message `cwbvh validate` prints."""
-    return Scene(_cwbvh.open(str(path), bool(deep), bool(verify_checksums)))
+    raises cwbvh.Error with the message `cwbvh validate` prints. The file is mapped, not read:
+    while the Scene is open, do not truncate or rewrite it in place (a read past a truncated end
+    kills the process with SIGBUS); replacing it by a rename, as compile() does, is safe."""
+    return Scene(_cwbvh.open(_fspath(path), bool(deep), bool(verify_checksums)))
 
 
 class Hits:
@@ -174,7 +177,12 @@ class Scene:
         """Where stored triangles come from (PMAP): (N, 4) uint32 rows (input file, glTF mesh,
         glTF primitive, triangle in that primitive) for the ids `prim` (e.g. Hits.prim); rows of
         MISS for MISS. The same source in a two-level file and its flatten=True twin."""
-        return self._handle().sources(_np.asarray(prim, dtype=_np.uint32).reshape(-1))
+        ids = _np.asarray(prim)
+        if ids.dtype.kind not in "iu":  # 1.9 was read as 1 (a float id is not an id)
+            raise TypeError("prim must hold integers, got dtype %s" % ids.dtype)
+        if ids.size and (ids.min() < 0 or ids.max() > 0xFFFFFFFF):  # -1 and 2**32 + 5 wrapped
+            raise ValueError("prim ids must lie in [0, 2**32 - 1] (MISS = 2**32 - 1)")
+        return self._handle().sources(ids.astype(_np.uint32).reshape(-1))
 
     def vertices(self):
         """The stored mesh's vertices (V, 3) float32, read-only, zero-copy (files compiled with

@@ -6,6 +6,7 @@ Scene.trace takes without a copy. The rays are those `cwbvh rays` writes, to the
 import numpy as np
 
 from . import _cwbvh
+from ._paths import fspath
 
 
 def pack_rays(origins, directions, tmin=0.0, tmax=np.inf):
@@ -25,7 +26,7 @@ def pack_rays(origins, directions, tmin=0.0, tmax=np.inf):
 
 def read_rays(path):
     """A ray file (spec/rays.md) as (N, 8) float32."""
-    return _cwbvh.read_rays(str(path))
+    return _cwbvh.read_rays(fspath(path))
 
 
 def read_hits(path, instances=False):
@@ -33,15 +34,15 @@ def read_hits(path, instances=False):
     (`cwbvh trace --hits` on a two-level file) carries instances and is refused unless
     instances=True, which returns (records, instances (N,) uint32 or None for a 1.0 file, flags)."""
     if instances:
-        return _cwbvh.read_hits(str(path), True)
-    return _cwbvh.read_hits(str(path))
+        return _cwbvh.read_hits(fspath(path), True)
+    return _cwbvh.read_hits(fspath(path))
 
 
 def views(scene, catalog=None, key=None):
     """The catalog's views of `scene` (a Scene): dicts with name, eye, target, fov, camera; one
     "default" view for a scene not in the catalog. `key`: the scene's catalog key (default: the
     file's stem); `catalog`: a catalog path (default: $CWBVH_VIEWS or views/catalog.txt)."""
-    return scene._handle().views(key or _cwbvh.scene_key(scene.path), catalog or "")
+    return scene._handle().views(key or _cwbvh.scene_key(scene.path), fspath(catalog, "catalog") if catalog else "")
 
 
 def view(scene, which=None, catalog=None, key=None):
@@ -51,7 +52,8 @@ def view(scene, which=None, catalog=None, key=None):
 
 
 def _view(scene, which, catalog, key):
-    return scene._handle().view(key or _cwbvh.scene_key(scene.path), "" if which is None else str(which), catalog or "")
+    return scene._handle().view(key or _cwbvh.scene_key(scene.path), "" if which is None else str(which),
+                                fspath(catalog, "catalog") if catalog else "")
 
 
 def camera_rays(scene, view=None, width=1024, height=1024, camera=None, catalog=None, key=None):

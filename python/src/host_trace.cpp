@@ -27,7 +27,11 @@
 namespace cwbvh::python {
 namespace {
 
-bool is_float32(const py::buffer_info& b) { return b.itemsize == 4 && b.format == py::format_descriptor<float>::format(); }
+/// float32 in native byte order: numpy exports "f", or "=f" / "<f" for an unaligned array
+/// (which the packing below copies element by element).
+bool is_float32(const py::buffer_info& b) {
+    return b.itemsize == 4 && (b.format == "f" || b.format == "=f" || b.format == "<f");
+}
 
 /// `what` must be a 2-D float32 array with `cols` columns (TypeError / ValueError otherwise).
 py::buffer_info checked(const py::array& a, const char* what, py::ssize_t cols) {

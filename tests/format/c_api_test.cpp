@@ -84,6 +84,11 @@ TEST(CApi, InvalidArguments) {
     EXPECT_EQ(cwbvh_nodes(nullptr, nullptr), nullptr);
     EXPECT_NE(cwbvh_error_message(nullptr), nullptr);
     EXPECT_STREQ(cwbvh_status_string(CWBVH_ERROR_CORRUPT), "corrupt");
+    EXPECT_STREQ(cwbvh_status_string(CWBVH_ERROR_OUT_OF_MEMORY), "out of memory");  // was "unknown status"
+    cwbvh_open_options_init(&o);
+    o.reserved = 7;  // the header says 0; it was accepted
+    EXPECT_EQ(cwbvh_open("x", &o, &f), CWBVH_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(f, nullptr);
     cwbvh_close(nullptr);
 }
 

@@ -15,8 +15,10 @@
 #include <cmath>
 #include <cstdint>
 #include <random>
+#include <vector>
 
 #include "cwbvh/kernels/ray.h"
+#include "cwbvh/kernels/ray_gen.h"
 #include "cwbvh/kernels/triangle_intersect.h"
 #include "cwbvh/oracle/oracle.h"
 
@@ -162,6 +164,19 @@ TEST(TriangleEdgeCases, HitsBeyondTheFloatRangeAreNoHits) {
     TriangleHit h;
     ASSERT_TRUE(watertight_hit(r, a, b, c, h));
     EXPECT_EQ(h.t, 0x1p127f);
+}
+
+// PrimTable (ray_gen.h, the diffuse rays' hit lookup) sized its index by the largest prim:
+// records changed after validation (a mapped file rewritten in place) with a prim near 2^32
+// allocated 16 GiB (an audit). A prim at or beyond the record count is left out.
+TEST(PrimTableBounds, AnOutOfRangePrimIsLeftOut) {
+    std::vector<TriangleRecord> tris(3);
+    for (uint32_t i = 0; i < 3; ++i) tris[i].prim = i;
+    tris[1].prim = 0xFFFFFFF0u;
+    const PrimTable table(tris.data(), tris.size());
+    EXPECT_EQ(table.find(0), &tris[0]);
+    EXPECT_EQ(table.find(2), &tris[2]);
+    EXPECT_EQ(table.find(0xFFFFFFF0u), nullptr);
 }
 
 }  // namespace

@@ -2,6 +2,10 @@
  * pointers to its sections. The layouts of the elements are those of
  * spec/cwbvh-format.md (and format/include/cwbvh/format/format.h for C++).
  *
+ * The file is mapped, not copied: while a handle is open the file must not be truncated
+ * or rewritten in place (a read past a truncated end is SIGBUS; bytes changed after the
+ * validation are not validated). Replacing it by a rename, as cwbvhc does, is safe.
+ *
  * Errors are per handle, so the API is thread-safe without globals: like
  * sqlite3_open, cwbvh_open hands back a handle even when it fails (unless
  * memory runs out); cwbvh_error_message() then explains the failure, and the
@@ -51,7 +55,7 @@ typedef struct cwbvh_open_options {
     uint32_t struct_size;      /* sizeof(cwbvh_open_options): lets the struct grow */
     uint32_t verify_checksums; /* nonzero: verify payload checksums (default 1) */
     uint32_t sections;         /* CWBVH_SECTION_* to validate and expose (default ALL) */
-    uint32_t reserved;         /* 0 */
+    uint32_t reserved;         /* 0 (cwbvh_open refuses anything else: CWBVH_ERROR_INVALID_ARGUMENT) */
 } cwbvh_open_options;
 
 typedef struct cwbvh_file cwbvh_file;
@@ -107,7 +111,9 @@ const void* cwbvh_top_nodes(const cwbvh_file* file, uint64_t* count);  /* 80-byt
  * CWBVH_ERROR_INVALID_ARGUMENT (NULL file/out, failed open, PMAP not selected,
  * prim not below the stored triangle count). */
 cwbvh_status cwbvh_source_of(const cwbvh_file* file, uint32_t prim, cwbvh_source_ref* out);
-/* Any section by FourCC (e.g. 0x45444F4E for "NODE"): bytes and size. */
+/* A section this loader knows, by FourCC (e.g. 0x45444F4E for "NODE"), if the file has it and
+ * it was selected at open: bytes and size. An unknown optional section (skipped by the loader,
+ * spec 2.4) gives NULL and size 0. */
 const void* cwbvh_section(const cwbvh_file* file, uint32_t type, uint64_t* size);
 
 void cwbvh_close(cwbvh_file* file);
