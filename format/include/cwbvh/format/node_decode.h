@@ -23,13 +23,15 @@ CWBVH_HD CWBVH_INLINE float exponent_scale(uint8_t e) {
 /// which a valid file never makes happen for planes in use.
 /// Written as one explicit fma so the result is the same on every compiler,
 /// with or without contraction (the product is exact, so fma == mul+add).
-CWBVH_HD CWBVH_INLINE float decode_plane(float p, uint8_t e, uint8_t q) {
+/// The same with the byte q given as a float (exact: 0..255), as the node tests hold it.
+CWBVH_HD CWBVH_INLINE float decode_plane_qf(float p, uint8_t e, float qf) {
 #if defined(__CUDA_ARCH__)
-    return __fmaf_rn(exponent_scale(e), float(q), p);
+    return __fmaf_rn(exponent_scale(e), qf, p);
 #else
-    return __builtin_fmaf(exponent_scale(e), float(q), p);
+    return __builtin_fmaf(exponent_scale(e), qf, p);
 #endif
 }
+CWBVH_HD CWBVH_INLINE float decode_plane(float p, uint8_t e, uint8_t q) { return decode_plane_qf(p, e, float(q)); }
 
 /// The decoded box of one slot: lo/hi[a] = decode_plane of q_lo/q_hi (the
 /// box the traversal tests; every consumer decodes through this).

@@ -18,8 +18,12 @@
 /// the loop variable stay in registers (host compilers decide for themselves).
 #if defined(__CUDA_ARCH__)
 #define CWBVH_UNROLL _Pragma("unroll")
+/// A loop kept rolled in device code (a rare path whose unrolled copies would only cost
+/// code size; its body must not index register arrays with the loop variable).
+#define CWBVH_NO_UNROLL _Pragma("unroll 1")
 #else
 #define CWBVH_UNROLL
+#define CWBVH_NO_UNROLL
 #endif
 
 namespace cwbvh {

@@ -3,10 +3,11 @@
 // made conservative in the manner of Ize 2013, "Robust BVH Ray Traversal".
 //
 // Contract (tested in tests/traverse/node_intersect_test.cpp): for a traceable
-// ray (ray.h), if the exact segment {org + t*dir : tmin <= t <= tmax} touches the
-// closed box a slot decodes to (node_decode.h, decode_plane), that slot's bits are
-// set in the returned hit mask. Extra bits (false positives) are allowed; they
-// cost a little time and never change a result.
+// ray (ray.h), if the exact segment {org + t*dir : tmin <= t <= tmax, |t| <= FLT_MAX}
+// touches the closed box a slot decodes to (node_decode.h, decode_plane), that slot's
+// bits are set in the returned hit mask. (A hit beyond the float range is no hit,
+// spec/rays.md.) Extra bits (false positives) are allowed; they cost a little time and
+// never change a result.
 //
 // Two implementations of the same arithmetic:
 //   intersect_node_scalar: device code and hosts without SSE2. Register-only: the
@@ -27,6 +28,7 @@
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/hostdevice.h"
 #include "cwbvh/format/node_decode.h"
+#include "cwbvh/kernels/axis_range.h"
 #include "cwbvh/kernels/fp.h"
 #include "cwbvh/kernels/ray.h"
 
@@ -46,19 +48,33 @@ struct NodeRay {
     float rcp[3];        ///< RN(1/dir): +-inf for dir = +-0 and for |dir| < ~2^-128
     float rcp_pad;       ///< 0 (same reason; a garbage lane could be a slow subnormal)
     uint32_t octinv;     ///< 7 - octant; octant bit 2 = x<0, bit 1 = y<0, bit 0 = z<0
-    /// Bit a (0-2) set: dir[a] == +-0 (slab test becomes "origin inside"). Bit 31
-    /// (kFastBit): this ray uses intersect_node_fast (enable_fast_node_test; only rays
-    /// without zero axes do). One register for both on the GPU.
+    /// Bit a (0-2) set: dir[a] == +-0 (no fast test for such a ray). Bit 4 + a
+    /// (kOpenShift): axis a has no reach (tmin < 0 and d != 0: the segment extends on
+    /// both sides of the origin; axis_range.h). Bit 31 (kFastBit): this ray uses
+    /// intersect_node_fast (enable_fast_node_test; only rays without zero axes do). One
+    /// register for all on the GPU.
     uint32_t zero_axes;
     static constexpr uint32_t kFastBit = 0x80000000u;
+    static constexpr int kOpenShift = 4;
     CWBVH_HD bool uses_fast_test() const { return (zero_axes & kFastBit) != 0; }
     CWBVH_HD uint32_t zero_axis_bits() const { return zero_axes & 7u; }
+    /// Axes (bit a) on which reach[a] bounds the segment.
+    CWBVH_HD uint32_t reach_axis_bits() const { return ~(zero_axes >> kOpenShift) & 7u; }
     /// Per axis: all ones when dir[a] < 0 (near plane = q_hi), else 0. Host SIMD
     /// code swaps the q_lo/q_hi plane words with it; device code derives it from octinv.
     uint64_t swap[3];
-    /// For intersect_node_fast (node_intersect_fast.h): -RN(o' * rcp) per axis
-    /// (enable_fast_node_test; 0 from make_node_ray).
-    float norcp[3];
+    /// One set of three registers, two uses (the kernels hold NodeRay in registers, and a
+    /// ray takes one node test or the other throughout):
+    union {
+        /// Reference test (kFastBit clear): the segment's reach per axis (axis_range.h),
+        /// for the axes whose slab arithmetic gives up in a node (axis_range_filter).
+        /// From make_node_ray.
+        float reach[3];
+        /// Fast test (kFastBit set; node_intersect_fast.h): -RN(o' * rcp) per axis.
+        /// Written by enable_fast_node_test only when it sets kFastBit, so clearing the
+        /// bit afterwards does not bring `reach` back: make the NodeRay again instead.
+        float norcp[3];
+    };
     /// For intersect_node_fast: the node frame's ray part, (243 - r) << 23 with
     /// r = floor(log2 max|rcp|) (enable_fast_node_test; 0 from make_node_ray).
     uint32_t frame;
@@ -84,8 +100,9 @@ CWBVH_HD CWBVH_INLINE NodeRay make_node_ray(const Ray& r) {
         if (r.dir[a] < 0.0f) octant |= 4u >> a;
         if (r.dir[a] == 0.0f) n.zero_axes |= 1u << a;
         n.swap[a] = r.dir[a] < 0.0f ? ~uint64_t(0) : uint64_t(0);
-        n.norcp[a] = 0.0f;  // enable_fast_node_test
+        if (r.tmin < 0.0f && r.dir[a] != 0.0f) n.zero_axes |= 1u << (NodeRay::kOpenShift + a);
     }
+    segment_reaches(r.org, r.dir, r.tmax, n.reach);
     n.octinv = 7u - octant;
     n.frame = 0u;
     return n;
@@ -114,10 +131,11 @@ inline constexpr float kSlabBound = 8.5070591730234616e+37f;  // 2^126
 // distance UP (t + E); the hit test is near <= far (not <: flat boxes with
 // qlo == qhi must stay hittable, cwbvh-facts 1.9 item 4).
 // An axis whose S is >= 2^126, inf or NaN (tiny or zero |d|, or huge
-// coordinates) gets no culling at all: adj_idir = 0, near = -inf, far = +inf.
+// coordinates) gets no slab culling: adj_idir = 0, near = -inf, far = +inf.
 // That is conservative, and it keeps inf*0 and inf-inf (NaN) out of the loop:
 // with no NaN anywhere, min/max are exact up to the sign of a zero result.
-// Axes with d == +-0 additionally get the exact "origin inside the slab" test.
+// Such axes are culled afterwards by the range between the origin and the segment's
+// reach (axis_range_filter; for d == +-0 the exact "origin inside the slab" test).
 
 /// Byte `s` (0..7) of the eight-byte plane row held in the words w0 (slots 0..3),
 /// w1 (slots 4..7), as a float (exact: 0..255).
@@ -134,25 +152,34 @@ CWBVH_HD CWBVH_INLINE float plane_byte(uint32_t w0, uint32_t w1, int s) {
 #endif
 }
 
-/// Exact "origin inside the slab" test for the axes with d == +-0 (rare: called
-/// only for rays with zero_axes != 0): clears the bits of slots whose decoded
-/// [lo, hi] on such an axis does not contain o_a. slots: bit s = slot s.
-CWBVH_HD CWBVH_INLINE uint32_t zero_axes_filter(const CwbvhNode& n, const NodeRay& r, uint32_t slots) {
+/// The culling of the axes whose slab arithmetic gives up in this node (axes: bit a;
+/// d = +-0, or slab terms unbounded: tiny or huge |d|, huge coordinates): clears the bits
+/// of slots whose decoded [lo, hi] on such an axis misses the range between the origin and
+/// the segment's reach there (axis_range.h; for d = +-0 the exact "origin inside the slab"
+/// test). Rare: called only when some axis of the node is unbounded. slots: bit s = slot
+/// s. The ray must use the reference test (r.reach is read).
+CWBVH_HD CWBVH_INLINE uint32_t axis_range_filter(const CwbvhNode& n, const NodeRay& r, uint32_t axes,
+                                                 uint32_t slots) {
     uint32_t lo_w[6], hi_w[6];
     memcpy(lo_w, n.q_lo, sizeof lo_w);
     memcpy(hi_w, n.q_hi, sizeof hi_w);
-    CWBVH_UNROLL
+    // One axis at a time, its words picked by selects (no register array indexed by a
+    // run-time value): one copy of the slot loop in the code, not three.
+    CWBVH_NO_UNROLL
     for (int a = 0; a < 3; ++a) {
-        if (((r.zero_axes >> a) & 1u) == 0) continue;
+        if (((axes >> a) & 1u) == 0) continue;
+        const bool x = a == 0, y = a == 1;
+        const uint32_t l0 = x ? lo_w[0] : y ? lo_w[2] : lo_w[4], l1 = x ? lo_w[1] : y ? lo_w[3] : lo_w[5];
+        const uint32_t h0 = x ? hi_w[0] : y ? hi_w[2] : hi_w[4], h1 = x ? hi_w[1] : y ? hi_w[3] : hi_w[5];
+        const float p = x ? n.p[0] : y ? n.p[1] : n.p[2];
+        const uint8_t e = x ? n.e[0] : y ? n.e[1] : n.e[2];
+        const float o = x ? r.org[0] : y ? r.org[1] : r.org[2];
+        const float reach = x ? r.reach[0] : y ? r.reach[1] : r.reach[2];
         CWBVH_UNROLL
         for (int s = 0; s < kWidth; ++s) {
-            // d[a] == 0: the ray stays in the plane x_a = o_a; it touches the slab
-            // iff lo <= o_a <= hi, compared exactly against the decoded planes.
-            const uint8_t ql = uint8_t(plane_byte(lo_w[2 * a], lo_w[2 * a + 1], s));
-            const uint8_t qh = uint8_t(plane_byte(hi_w[2 * a], hi_w[2 * a + 1], s));
-            const float lo = decode_plane(n.p[a], n.e[a], ql);
-            const float hi = decode_plane(n.p[a], n.e[a], qh);
-            if (!(lo <= r.org[a] && r.org[a] <= hi)) slots &= ~(1u << s);
+            const float lo = decode_plane_qf(p, e, plane_byte(l0, l1, s));
+            const float hi = decode_plane_qf(p, e, plane_byte(h0, h1, s));
+            slots &= reach_meets(o, reach, lo, hi) ? ~0u : ~(1u << s);
         }
     }
     return slots;
@@ -200,12 +227,14 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_scalar(const CwbvhNode& n, const N
     memcpy(meta_w, n.meta, sizeof meta_w);
     float adj_idir[3], orig_near[3], orig_far[3];
     uint32_t near_w[6], far_w[6];
+    uint32_t unbounded = 0;  // bit a: no slab culling on axis a in this node
     CWBVH_UNROLL
     for (int a = 0; a < 3; ++a) {
         const float idir = mul_rn(exponent_scale(n.e[a]), r.rcp[a]);
         const float orig = mul_rn(sub_rn(n.p[a], r.org[a]), r.rcp[a]);
         const float s = 255.0f * abs_f(idir) + abs_f(orig) + abs_f(mul_rn(n.p[a], r.rcp[a]));
         const bool bounded = s < kSlabBound;  // false for inf and NaN
+        unbounded |= bounded ? 0u : 1u << a;
         const float err = s * kSlabErrorScale + kFloatMin;
         adj_idir[a] = bounded ? idir : 0.0f;
         orig_near[a] = bounded ? sub_rn(orig, err) : -kInfinity;  // rounds down enough: see above
@@ -234,7 +263,8 @@ CWBVH_HD CWBVH_INLINE uint32_t intersect_node_scalar(const CwbvhNode& n, const N
         // Empty slots need no test here: their meta byte is 0, so they add no bits below.
         slots |= uint32_t(tnear <= tfar) << s;
     }
-    if (r.zero_axis_bits() != 0 && slots != 0) slots = zero_axes_filter(n, r, slots);
+    unbounded &= r.reach_axis_bits();
+    if (unbounded != 0 && slots != 0) slots = axis_range_filter(n, r, unbounded, slots);
     return meta_hit_bits(meta_w, r.octinv, slots);
 }
 
@@ -288,7 +318,8 @@ inline uint32_t intersect_node_sse(const CwbvhNode& n, const NodeRay& r, float t
     const uint32_t box_hits = uint32_t(_mm_movemask_ps(_mm_cmple_ps(tn0, tf0))) |
                               (uint32_t(_mm_movemask_ps(_mm_cmple_ps(tn1, tf1))) << 4);
     uint32_t slots = box_hits;
-    if (r.zero_axis_bits() != 0 && slots != 0) slots = zero_axes_filter(n, r, slots);
+    const uint32_t unbounded = ~uint32_t(_mm_movemask_ps(bounded)) & r.reach_axis_bits();
+    if (unbounded != 0 && slots != 0) slots = axis_range_filter(n, r, unbounded, slots);
     uint32_t meta_w[2];
     memcpy(meta_w, n.meta, sizeof meta_w);
     return meta_hit_bits(meta_w, r.octinv, slots);

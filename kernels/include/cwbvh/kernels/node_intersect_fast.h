@@ -169,15 +169,18 @@ CWBVH_HD CWBVH_INLINE bool fast_node_test_applies(const NodeScale& sc, const flo
 /// +0 for a -0 tmin) and sets the node frame's ray part, frame = (243 - r) << 23. The
 /// scalar test keeps using org.
 CWBVH_HD CWBVH_INLINE void enable_fast_node_test(NodeRay& r, const NodeScale& sc, const float dir[3], float tmin) {
-    float moved[3];
+    float moved[3], norcp[3];
     for (int a = 0; a < 3; ++a) {
         moved[a] = fma_rn(tmin, dir[a], r.org[a]);
-        r.norcp[a] = -mul_rn(moved[a], r.rcp[a]);
+        norcp[a] = -mul_rn(moved[a], r.rcp[a]);
     }
     int rexp = 0;
     const bool fast = r.zero_axis_bits() == 0 && fast_node_test_applies(sc, moved, r.rcp, tmin, &rexp);
     r.zero_axes = r.zero_axis_bits() | (fast ? NodeRay::kFastBit : 0u);
     r.frame = fast ? uint32_t(243 - rexp) << 23 : 0u;
+    // norcp shares its registers with dir, which the reference test reads (NodeRay).
+    if (fast)
+        for (int a = 0; a < 3; ++a) r.norcp[a] = norcp[a];
 }
 
 /// A CwbvhNode as the twenty 32-bit words a GPU loads (five 16-byte loads): the fast

@@ -10,8 +10,10 @@
 // computed t is within a relative 3u (u = 2^-24) of the exact one, so near is
 // rounded DOWN by the factor (1 -/+ 2^-21) and far UP (2^-21 = 8u covers the 3u,
 // the factor's own rounding and slack), then FLT_MIN of absolute slack for
-// subnormals. Axes with non-finite RN(1/d) (|d| = 0 or < ~2^-128) are unbounded;
-// exactly zero ones get the exact "origin inside" test. Hit test: near <= far.
+// subnormals. Axes with non-finite or subnormal RN(1/d) (|d| = 0, < ~2^-128 or
+// > 2^126) are unbounded: culled by the range between the origin and the segment's
+// reach instead (axis_range.h; for d = +-0 the exact "origin inside" test). Hit test:
+// near <= far.
 //
 // Stack bound: one entry per level at most (the far child), so entries < depth of
 // the binary tree; a full push stops with kStackOverflow.
@@ -21,6 +23,7 @@
 
 #include "cwbvh/format/format.h"
 #include "cwbvh/format/hostdevice.h"
+#include "cwbvh/kernels/axis_range.h"
 #include "cwbvh/kernels/fp.h"
 #include "cwbvh/kernels/ray.h"
 #include "cwbvh/kernels/traverse.h"
@@ -30,21 +33,29 @@ namespace cwbvh {
 
 struct Bvh2Ray {
     float org[3];
+    /// RN(1/d[a]); on an unbounded axis the segment's reach there instead (the slab test
+    /// skips the axis and culls by the range between o and the reach, axis_range.h).
     float rcp[3];
-    uint32_t unbounded;  ///< bit a: RN(1/d[a]) is not finite
-    uint32_t zero_axes;  ///< bit a: d[a] == +-0
+    /// Bit a: RN(1/d[a]) is not finite, or subnormal. Bit 4 + a: and the axis is open
+    /// (tmin < 0, d != 0: the segment extends on both sides of o), no culling there.
+    uint32_t unbounded;
 };
 
 CWBVH_HD CWBVH_INLINE Bvh2Ray make_bvh2_ray(const Ray& r) {
     Bvh2Ray b;
-    b.unbounded = b.zero_axes = 0;
+    b.unbounded = 0;
+    float reach[3];
+    segment_reaches(r.org, r.dir, r.tmax, reach);
     for (int a = 0; a < 3; ++a) {
         b.org[a] = r.org[a];
         b.rcp[a] = 1.0f / r.dir[a];
         // Unbounded when RN(1/d) is inf (|d| tiny or 0) or subnormal (|d| > 2^126:
         // no longer within a relative u of 1/d).
-        if (!is_finite_f(b.rcp[a]) || abs_f(b.rcp[a]) < kFloatMin) b.unbounded |= 1u << a;
-        if (r.dir[a] == 0.0f) b.zero_axes |= 1u << a;
+        if (!is_finite_f(b.rcp[a]) || abs_f(b.rcp[a]) < kFloatMin) {
+            b.unbounded |= 1u << a;
+            b.rcp[a] = reach[a];
+            if (r.tmin < 0.0f && r.dir[a] != 0.0f) b.unbounded |= 16u << a;
+        }
     }
     return b;
 }
@@ -56,8 +67,8 @@ CWBVH_HD CWBVH_INLINE bool intersect_box_robust(const Bvh2Ray& r, const float* l
                                                 float tmin, float tmax, float& tnear_out) {
     float tnear = tmin, tfar = tmax;
     for (int a = 0; a < 3; ++a) {
-        if ((r.unbounded >> a) & 1u) {
-            if (((r.zero_axes >> a) & 1u) && !(lo[a] <= r.org[a] && r.org[a] <= hi[a])) return false;
+        if ((r.unbounded >> a) & 1u) {  // rare: culled by the reach (d = +-0: origin inside)
+            if (((r.unbounded >> (4 + a)) & 1u) == 0 && !reach_meets(r.org[a], r.rcp[a], lo[a], hi[a])) return false;
             continue;
         }
         float t0 = mul_rn(sub_rn(lo[a], r.org[a]), r.rcp[a]);
