@@ -26,7 +26,7 @@ import math as _math
 
 import numpy as _np
 
-from . import _arrays, _cwbvh
+from . import _args, _arrays, _cwbvh
 from ._paths import fspath as _fspath
 from ._cwbvh import Error, built_with_cuda, gpu_status
 from .rays import camera_rays, diffuse_rays, pack_rays, read_hits, read_rays, view, views
@@ -60,18 +60,22 @@ def compile(inputs, output, threads=None, progress=None, **options):  # noqa: A0
     (cwbvhc --flatten) places every instance's triangles in one single-level tree (builder
     'embree', keep_sbvh and keep_mesh imply it). progress: optional callable(phase, fraction, seconds), called on
     this thread at each phase's start (0.0, None), every 0.2 s while a counted phase runs, and at
-    its end (1.0, seconds). Returns the statistics of `cwbvhc --stats-json` as a dict (two_level,
-    meshes, instances, instanced_triangles, ... for a two-level file). Bad input
-    raises cwbvh.Error with cwbvhc's one-line message; bad options raise ValueError/TypeError.
+    its end (1.0, seconds). An exception it raises cancels the compile before the next phase and
+    propagates: nothing is written and a file already at `output` keeps its bytes (unless raised at
+    the write's end, ("write", 1.0, seconds), which comes after the file is in place). Returns the
+    statistics of `cwbvhc --stats-json` as a dict (two_level, meshes, instances,
+    instanced_triangles, ... for a two-level file). Bad input raises cwbvh.Error with cwbvhc's
+    one-line message; bad options raise ValueError/TypeError.
     """
     if isinstance(inputs, (str, bytes)) or hasattr(inputs, "__fspath__"):
         inputs = [inputs]
-    inputs = [_fspath(p, "inputs") for p in inputs]
-    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
-        raise ValueError("threads must be None or a positive integer, got %r" % (threads,))
+    elif not hasattr(inputs, "__iter__"):
+        raise TypeError("compile: inputs must be a path or a list of paths, got %s" % type(inputs).__name__)
+    inputs = [_fspath(p, "compile: inputs") for p in inputs]
+    threads = _args.integer(threads, "compile: threads", 1, 4096, none=0)
     if progress is not None and not callable(progress):
-        raise TypeError("progress must be callable(phase, fraction, seconds)")
-    text = _cwbvh.compile(inputs, _fspath(output, "output"), threads or 0, options, progress)
+        raise TypeError("compile: progress must be callable(phase, fraction, seconds)")
+    text = _cwbvh.compile(inputs, _fspath(output, "compile: output"), threads, options, progress)
     return _json.loads(text)
 
 
@@ -83,7 +87,7 @@ def open(path, deep=False, verify_checksums=True):  # noqa: A001 - cwbvh.open mi
     raises cwbvh.Error with the message `cwbvh validate` prints. The file is mapped, not read:
     while the Scene is open, do not truncate or rewrite it in place (a read past a truncated end
     kills the process with SIGBUS); replacing it by a rename, as compile() does, is safe."""
-    return Scene(_cwbvh.open(_fspath(path), bool(deep), bool(verify_checksums)))
+    return Scene(_cwbvh.open(_fspath(path, "open: path"), bool(deep), bool(verify_checksums)))
 
 
 class Hits:
@@ -112,17 +116,9 @@ class Hits:
         return self.prim != MISS
 
 
-def _threads(threads):
-    if threads is None:
-        return 0
-    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1 or threads > 1024:
-        raise ValueError("threads must be None (all cores) or an integer in [1, 1024], got %r" % (threads,))
-    return threads
-
-
 def _interval(tmin, tmax):
-    tmin = 0.0 if tmin is None else float(tmin)
-    tmax = _math.inf if tmax is None else float(tmax)
+    tmin = 0.0 if tmin is None else _args.number(tmin, "trace: tmin")
+    tmax = _math.inf if tmax is None else _args.number(tmax, "trace: tmax")
     if _math.isnan(tmin) or _math.isnan(tmax) or tmin > tmax:
         raise ValueError("tmin and tmax must be numbers with tmin <= tmax, got %r and %r" % (tmin, tmax))
     return tmin, tmax
@@ -179,9 +175,9 @@ class Scene:
         MISS for MISS. The same source in a two-level file and its flatten=True twin."""
         ids = _np.asarray(prim)
         if ids.dtype.kind not in "iu":  # 1.9 was read as 1 (a float id is not an id)
-            raise TypeError("prim must hold integers, got dtype %s" % ids.dtype)
+            raise TypeError("sources: prim must hold integers, got dtype %s" % ids.dtype)
         if ids.size and (ids.min() < 0 or ids.max() > 0xFFFFFFFF):  # -1 and 2**32 + 5 wrapped
-            raise ValueError("prim ids must lie in [0, 2**32 - 1] (MISS = 2**32 - 1)")
+            raise ValueError("sources: prim ids must lie in [0, 2**32 - 1] (MISS = 2**32 - 1)")
         return self._handle().sources(ids.astype(_np.uint32).reshape(-1))
 
     def vertices(self):
@@ -214,10 +210,10 @@ class Scene:
         return "<cwbvh.Scene %r (%s)>" % (self.path, state)
 
     def to_device(self, device=-1):
-        """Upload the traversal sections to the GPU once (device -1: the current one; a two-level
+        """Upload the traversal sections to the GPU once (device -1 or None: the current one; a two-level
         file's top level too). Raises cwbvh.Error when there is no usable GPU (gpu_status() says
         why)."""
-        self._handle().to_device(int(device))
+        self._handle().to_device(_args.integer(device, "to_device: device", -1, none=-1))
         return self
 
     @property
@@ -249,6 +245,7 @@ class Scene:
             raise ValueError("rays (N, 8) carry their own tmin and tmax; pass tmin/tmax only with (N, 3) "
                              "origins and directions")
         tmin, tmax = _interval(tmin, tmax)
+        threads = _args.integer(threads, "trace: threads", 1, 1024, none=0)
         stream = _arrays.stream_handle(stream)
         o_dev = _arrays.device_view(origins, o_name, stream)
         d_dev = None if packed else _arrays.device_view(directions, "directions", stream)
@@ -259,8 +256,7 @@ class Scene:
         o = _arrays.host_array(origins, o_name)
         d = None if packed else _arrays.host_array(directions, "directions")
         stats = {}
-        records, instance = self._h.trace_host(o, d, tmin, tmax, bool(any_hit), bool(watertight), _threads(threads),
-                                               stats)
+        records, instance = self._h.trace_host(o, d, tmin, tmax, bool(any_hit), bool(watertight), threads, stats)
         return Hits(records[:, 0], records[:, 1], records[:, 2], records.view(_np.uint32)[:, 3], records, stats,
                     instance)
 

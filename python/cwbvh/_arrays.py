@@ -110,15 +110,19 @@ def device_view(obj, name, stream=None):
 
 
 def host_array(obj, name):
-    """`obj` as a numpy array without a copy (TypeError for what numpy cannot view)."""
+    """`obj` as a numpy array without a copy (TypeError for what numpy cannot view, or views as
+    objects or text: None, a str)."""
     if isinstance(obj, np.ndarray):
         return obj
     if hasattr(obj, "__dlpack__") and not hasattr(obj, "__array_interface__"):
         return np.from_dlpack(obj)
     try:
-        return np.asarray(obj)
+        array = np.asarray(obj)
     except Exception as e:  # noqa: BLE001 - numpy raises many kinds
         raise TypeError("%s: expected an array, got %s (%s)" % (name, type(obj).__name__, e)) from None
+    if array.dtype.kind in "OUSV":
+        raise TypeError("%s: expected a float32 array, got %s" % (name, type(obj).__name__))
+    return array
 
 
 def check_device_rays(view, name, cols):

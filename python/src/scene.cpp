@@ -198,37 +198,56 @@ py::dict view_dict(const View& v) {
     return d;
 }
 
-/// The view `which` (a name, a 1-based index, or "" for the first) of `scene` as `cwbvh rays
-/// --view` picks it; a scene not in the catalog (or no catalog) gets the default camera.
+/// `which` is the 1-based index 1 ("1", "01"; at most 9 digits, as ViewCatalog::find reads them).
+bool is_first_index(const std::string& which) {
+    if (which.empty() || which.size() > 9 || which.find_first_not_of("0123456789") != std::string::npos) return false;
+    return std::stoul(which) == 1;
+}
+
+/// The view `which` (a name, a 1-based index, or "" for the first) among views() of `scene`: a
+/// scene of the catalog has the catalog's views, found as `cwbvh rays --view` finds them; a scene
+/// the catalog does not list (or any scene without a catalog) has one view, "default" (index 1).
 View pick_view(const File& f, const std::string& scene, const std::string& which, const std::string& catalog) {
     CatalogLoad loaded = CatalogLoad::kError;
     const ViewCatalog c = load_catalog(catalog, loaded);
-    // A scene the catalog does not list has one view, "default" (what views() lists for it).
-    if (loaded == CatalogLoad::kLoaded && !which.empty() && !(which == "default" && c.views_of(scene).empty())) {
+    const std::vector<View> views = benchmark_views(c, scene, *f.bounds());
+    if (which.empty()) return views.front();
+    if (c.has_scene(scene)) {
         View v;
         const Result r = c.find(scene, which, v);
         if (!r.ok()) throw py::value_error(r.message);
         return v;
     }
-    if (!which.empty() && which != "default")
-        throw py::value_error("view '" + which + "': no view catalog (" + default_view_catalog_path() + ")");
-    return benchmark_views(c, scene, *f.bounds()).front();
+    if (which == views.front().name || is_first_index(which)) return views.front();
+    const bool index = which.find_first_not_of("0123456789") == std::string::npos;
+    const std::string where = loaded == CatalogLoad::kLoaded ? "in " + c.source()
+                                                             : "(no view catalog at " + default_view_catalog_path() + ")";
+    throw py::value_error((index ? "view " + which + " out of range" : "no view '" + which + "'") + ": scene '" +
+                          scene + "' has no views " + where + "; its one view is 1 " + views.front().name +
+                          " (the default camera)");
+}
+
+/// parse_camera's message, which names the tool's option ("--camera: ..."), as camera_rays' own.
+std::string camera_message(std::string message) {
+    const std::string option = "--camera: ";
+    if (message.rfind(option, 0) == 0) message.erase(0, option.size());
+    return "camera_rays: camera: " + message;
 }
 
 Camera camera_from(py::handle camera) {
     Camera c;
     if (py::isinstance<py::str>(camera)) {
         const Result r = parse_camera(camera.cast<std::string>(), c);
-        if (!r.ok()) throw py::value_error(r.message);
+        if (!r.ok()) throw py::value_error(camera_message(r.message));
         return c;
     }
     const auto v = camera.cast<std::vector<float>>();
-    if (v.size() != 7) throw py::value_error("camera: give eye (3), target (3) and fov: 7 numbers");
+    if (v.size() != 7) throw py::value_error("camera_rays: camera: give eye (3), target (3) and fov: 7 numbers");
     std::copy(v.begin(), v.begin() + 3, c.eye);
     std::copy(v.begin() + 3, v.begin() + 6, c.target);
     c.fov_deg = v[6];
     Camera check;  // parse_camera's rules (finite, 0 < fov < 180, eye != target) on the numbers
-    if (const Result r = parse_camera(format_camera(c), check); !r.ok()) throw py::value_error(r.message);
+    if (const Result r = parse_camera(format_camera(c), check); !r.ok()) throw py::value_error(camera_message(r.message));
     return c;
 }
 

@@ -32,15 +32,58 @@ def test_progress_callback(tmp_path):
     assert all(f == 1.0 and s >= 0 for _, f, s in events if s is not None)
 
 
-def test_progress_exception_is_raised(tmp_path):
-    class Stop(Exception):
-        pass
+class Stop(Exception):
+    pass
 
+
+def test_progress_exception_is_raised(tmp_path):
     def boom(*_):
         raise Stop()
 
     with pytest.raises(Stop):
         cwbvh.compile(str(require(BUNNY_OBJ, "the bunny")), tmp_path / "b.cwbvh", progress=boom)
+    assert not (tmp_path / "b.cwbvh").exists()
+
+
+def test_progress_exception_cancels_the_compile(tmp_path):
+    """An exception of the callback at any phase start or end before the write's end stops the
+    compile there: it propagates, no later phase is reported, no file is written and a file
+    already at the output path keeps its bytes (it was raised only after the write)."""
+    n = 24
+    lines = ["v %d %d %g" % (x, y, 0.3 * (x % 3)) for y in range(n + 1) for x in range(n + 1)]
+    for y in range(n):
+        for x in range(n):
+            a = y * (n + 1) + x + 1
+            lines += ["f %d %d %d" % (a, a + 1, a + n + 2), "f %d %d %d" % (a, a + n + 2, a + n + 1)]
+    src = tmp_path / "grid.obj"
+    src.write_text("\n".join(lines) + "\n")
+    boundaries = []
+    cwbvh.compile(src, tmp_path / "full.cwbvh", progress=lambda p, f, s: boundaries.append((p, f, s is not None))
+                  if (f, s is not None) in ((0.0, False), (1.0, True)) else None)
+    assert boundaries[0] == ("import", 0.0, False) and boundaries[-1] == ("write", 1.0, True)
+    out = tmp_path / "out.cwbvh"
+    for at in boundaries[:-1]:
+        for existing in (False, True):
+            if existing:
+                out.write_bytes(b"the file that was there before")
+            elif out.exists():
+                out.unlink()
+            seen = []
+
+            def progress(phase, fraction, seconds):
+                seen.append((phase, fraction, seconds is not None))
+                if seen[-1] == at:
+                    raise Stop(at)
+
+            with pytest.raises(Stop):
+                cwbvh.compile(src, out, progress=progress)
+            assert seen[-1] == at, (at, seen)
+            if existing:
+                assert out.read_bytes() == b"the file that was there before", at
+            else:
+                assert not out.exists(), at
+            assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+                ["grid.obj", "full.cwbvh"] + (["out.cwbvh"] if existing else [])), at
 
 
 def cwbvhc_error(*args):

@@ -3,14 +3,18 @@
 // and on a terminal the phase line shows percentages and stops cleanly.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
 #include <regex>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "../result_util.h"
@@ -127,6 +131,71 @@ TEST(CompileProgress, EmbreeBuilderIsNotCounted) {
     EXPECT_EQ(ends[1].phase, "embree");
     EXPECT_EQ(ends[1].total, 0u);
     for (const PhaseEnd& e : ends) EXPECT_EQ(e.done, e.total) << e.phase;
+}
+
+/// The names in `dir` (a cancelled compile must leave no temporary file behind).
+std::vector<std::string> listing(const fs::path& dir) {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+}
+
+TEST(CompileProgress, ACallbackThatThrowsCancelsTheCompileBeforeTheWrite) {
+    // compile.h: a throw from the PhaseCallback leaves compile() at once; before the write's end
+    // nothing is written and a file already at the output path keeps its bytes. Checked at every
+    // phase start and end of a compile, with and without such a file.
+    const auto dir = cwbvh::test::temp_dir("progress_cancel");
+    std::vector<std::array<double, 3>> v;
+    std::vector<std::array<int, 3>> f;
+    for (int y = 0; y <= 20; ++y)
+        for (int x = 0; x <= 20; ++x) v.push_back({double(x), double(y), std::sin(0.5 * x)});
+    for (int y = 0; y < 20; ++y)
+        for (int x = 0; x < 20; ++x) {
+            const int a = y * 21 + x;
+            f.push_back({a, a + 1, a + 22});
+            f.push_back({a, a + 22, a + 21});
+        }
+    cwbvh::test::write_obj(dir / "grid.obj", v, f);
+    CompileOptions options;
+    options.inputs = {(dir / "grid.obj").string()};
+    options.output = (dir / "full.cwbvh").string();
+    options.threads = 2;
+    std::vector<std::pair<std::string, bool>> calls;
+    CompileStats full;
+    std::string error;
+    ASSERT_TRUE(::cwbvh::test::ok(compile(options, full,
+                                          [&](const std::string& phase, bool done, double) {
+                                              calls.emplace_back(phase, done);
+                                          }),
+                                  error))
+        << error;
+    ASSERT_EQ(calls.back(), std::make_pair(std::string("write"), true));
+
+    struct Stop {};
+    const fs::path out = dir / "cancelled.cwbvh";
+    const std::string old = "the file that was there before";
+    for (size_t at = 0; at + 1 < calls.size(); ++at) {
+        for (const bool existing : {false, true}) {
+            SCOPED_TRACE(calls[at].first + (calls[at].second ? " end" : " start") +
+                         (existing ? ", over an existing file" : ""));
+            fs::remove(out);
+            if (existing) std::ofstream(out, std::ios::binary) << old;
+            const std::vector<std::string> before = listing(dir);
+            options.output = out.string();
+            size_t n = 0;
+            CompileStats stats;
+            EXPECT_THROW(compile(options, stats,
+                                 [&](const std::string&, bool, double) {
+                                     if (n++ == at) throw Stop{};
+                                 }),
+                         Stop);
+            EXPECT_EQ(n, at + 1) << "the compile went on after the callback threw";
+            if (existing) EXPECT_EQ(cwbvh::test::slurp(out), old);
+            else EXPECT_FALSE(fs::exists(out));
+            EXPECT_EQ(listing(dir), before);
+        }
+    }
 }
 
 TEST(CompileProgress, ProgressBatchPublishesInStepsAndRetracts) {

@@ -508,6 +508,37 @@ TEST(TwoLevel, MeshesPhaseCountsTheDistinctTriangles) {
     EXPECT_EQ(counted.size(), 1u);
 }
 
+TEST(TwoLevel, ACallbackThatThrowsCancelsTheCompileBeforeTheWrite) {
+    // compile.h's cancellation on the two-level phases (meshes, assemble, ..., write): a throw at
+    // any phase start or end before the write's end writes nothing.
+    const fs::path dir = test::temp_dir("two_level_cancel");
+    write_gltf(dir / "s.gltf", {box_mesh(), tetra_mesh()}, {{0, ""}, {0, translation(3, 0, 0)}, {1, ""}});
+    CompileOptions o;
+    o.inputs = {(dir / "s.gltf").string()};
+    o.output = (dir / "full.cwbvh").string();
+    o.threads = 2;
+    std::vector<std::string> calls;
+    CompileStats full;
+    const Result r = compile(o, full, [&](const std::string& phase, bool done, double) {
+        calls.push_back(phase + (done ? " end" : " start"));
+    });
+    ASSERT_TRUE(r.ok()) << r.message;
+    ASSERT_TRUE(full.two_level);
+    ASSERT_EQ(calls.back(), "write end");
+    struct Stop {};
+    o.output = (dir / "cancelled.cwbvh").string();
+    for (size_t at = 0; at + 1 < calls.size(); ++at) {
+        SCOPED_TRACE(calls[at]);
+        size_t n = 0;
+        CompileStats stats;
+        EXPECT_THROW(compile(o, stats, [&](const std::string&, bool, double) {
+            if (n++ == at) throw Stop{};
+        }), Stop);
+        EXPECT_EQ(n, at + 1);
+        EXPECT_FALSE(fs::exists(o.output));
+    }
+}
+
 TEST(TwoLevel, NoMeshPlacedTwiceGivesTheSingleLevelFileByteForByte) {
     const fs::path dir = test::temp_dir("two_level_single");
     write_gltf(dir / "s.gltf", {box_mesh(), tetra_mesh()}, {{0, translation(1, 0, 0)}, {1, ""}, {-1, ""}});

@@ -71,7 +71,10 @@ struct CompileStats {
     std::vector<std::string> warnings;
 };
 
-/// Called when a phase starts (done=false) and ends (done=true).
+/// Called when a phase starts (done=false) and ends (done=true), on the thread that runs
+/// compile(). It cancels the compile by throwing: the exception leaves compile() at once and no
+/// later phase runs, so a throw before the end of the "write" phase (done=true) writes nothing
+/// and leaves a file already at the output path as it was (the writer's AtomicOutput).
 using PhaseCallback = std::function<void(const std::string& phase, bool done, double seconds)>;
 
 /// Runs the pipeline. On bad input returns a failed Result whose message is one
