@@ -232,6 +232,12 @@ std::vector<View> benchmark_views(const ViewCatalog& catalog, const std::string&
     return vs;
 }
 
+bool names_default_view(const std::string& which) {
+    if (which == "default") return true;
+    if (which.empty() || which.size() > 9 || which.find_first_not_of("0123456789") != std::string::npos) return false;
+    return std::stoul(which) == 1;
+}
+
 std::string format_camera(const Camera& c) {
     const float v[7] = {c.eye[0], c.eye[1], c.eye[2], c.target[0], c.target[1], c.target[2], c.fov_deg};
     std::string s;

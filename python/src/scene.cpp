@@ -198,12 +198,6 @@ py::dict view_dict(const View& v) {
     return d;
 }
 
-/// `which` is the 1-based index 1 ("1", "01"; at most 9 digits, as ViewCatalog::find reads them).
-bool is_first_index(const std::string& which) {
-    if (which.empty() || which.size() > 9 || which.find_first_not_of("0123456789") != std::string::npos) return false;
-    return std::stoul(which) == 1;
-}
-
 /// The view `which` (a name, a 1-based index, or "" for the first) among views() of `scene`: a
 /// scene of the catalog has the catalog's views, found as `cwbvh rays --view` finds them; a scene
 /// the catalog does not list (or any scene without a catalog) has one view, "default" (index 1).
@@ -218,7 +212,7 @@ View pick_view(const File& f, const std::string& scene, const std::string& which
         if (!r.ok()) throw py::value_error(r.message);
         return v;
     }
-    if (which == views.front().name || is_first_index(which)) return views.front();
+    if (names_default_view(which)) return views.front();
     const bool index = which.find_first_not_of("0123456789") == std::string::npos;
     const std::string where = loaded == CatalogLoad::kLoaded ? "in " + c.source()
                                                              : "(no view catalog at " + default_view_catalog_path() + ")";

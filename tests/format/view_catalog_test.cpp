@@ -323,9 +323,17 @@ TEST(RaysView, BadViewIsAOneLineUsageError) {
     ToolRun r = run_tool(base + " --view only --camera 1,2,3,0,0,0,40");
     EXPECT_EQ(r.code, 2) << r.out;
     EXPECT_EQ(lines(r.out), 1u) << r.out;
-    r = run_tool(base + " --scene elsewhere --view 1");
-    EXPECT_EQ(r.code, 2) << r.out;
-    EXPECT_EQ(lines(r.out), 1u) << r.out;
+    // A scene outside the catalog has one view, the default camera: 1 and "default" name it
+    // (as Python's cwbvh.view); any other is a usage error.
+    for (const char* v : {"1", "01", "default"}) {
+        r = run_tool(base + " --scene elsewhere --view " + v);
+        EXPECT_EQ(r.code, 0) << v << ": " << r.out;
+    }
+    for (const char* v : {"2", "only", "0"}) {
+        r = run_tool(base + " --scene elsewhere --view " + v);
+        EXPECT_EQ(r.code, 2) << v << ": " << r.out;
+        EXPECT_EQ(lines(r.out), 1u) << r.out;
+    }
     // A malformed or missing named catalog is bad input (exit 1), one line naming file and line.
     const std::string bad_text = "cwbvh-views 1\nrays_badview only 1,2,3\n";
     const std::string bad = test::write_temp("rays_badcat.txt", {bad_text.begin(), bad_text.end()});

@@ -44,11 +44,18 @@ int choose_camera(const char* verb, const std::string& path, const SceneBounds& 
     CatalogLoad loaded = CatalogLoad::kError;
     const Result load = load_view_catalog(o.views ? o.views : "", catalog, loaded);
     bool default_cam = false;
-    if (loaded == CatalogLoad::kError || (loaded == CatalogLoad::kAbsent && o.view)) {
+    // A scene outside the catalog (or without one) has one view, the default camera: --view 1
+    // or --view default names it (names_default_view, as Python's cwbvh.view).
+    const bool outside = loaded == CatalogLoad::kAbsent || (loaded == CatalogLoad::kLoaded && !catalog.has_scene(scene));
+    if (loaded == CatalogLoad::kError ||
+        (loaded == CatalogLoad::kAbsent && o.view && !names_default_view(o.view))) {
         return error(kExitBadInput, (v + ": " + load.message).c_str());
     } else if (loaded == CatalogLoad::kAbsent) {
         default_cam = true;
         note = "default camera (no view catalog: " + load.message + ")";
+    } else if (o.view && outside && names_default_view(o.view)) {
+        default_cam = true;
+        note = "default camera (scene '" + scene + "' not in " + catalog.source() + ")";
     } else if (o.view) {
         View view;
         if (const Result r = catalog.find(scene, o.view, view); !r.ok())

@@ -70,6 +70,11 @@ std::string scene_key(const std::string& path);
 /// catalog, one view "default" = default_camera(bounds) with line 0.
 std::vector<View> benchmark_views(const ViewCatalog& catalog, const std::string& scene, const SceneBounds& bounds);
 
+/// Whether `which` (a view name or 1-based index, as --view takes it) names the one view of a
+/// scene outside the catalog: "default", or the index 1 ("1", "01"; at most 9 digits, as
+/// ViewCatalog::find reads indices). `cwbvh rays|render --view` and Python's cwbvh.view agree.
+bool names_default_view(const std::string& which);
+
 /// "ex,ey,ez,tx,ty,tz,fov" with each number printed so that it reads back exactly
 /// (parse_camera(format_camera(c)) == c).
 std::string format_camera(const Camera& camera);
