@@ -87,7 +87,8 @@ def open(path, deep=False, verify_checksums=True):  # noqa: A001 - cwbvh.open mi
     raises cwbvh.Error with the message `cwbvh validate` prints. The file is mapped, not read:
     while the Scene is open, do not truncate or rewrite it in place (a read past a truncated end
     kills the process with SIGBUS); replacing it by a rename, as compile() does, is safe."""
-    return Scene(_cwbvh.open(_fspath(path, "open: path"), bool(deep), bool(verify_checksums)))
+    return Scene(_cwbvh.open(_fspath(path, "open: path"), _args.flag(deep, "open: deep"),
+                               _args.flag(verify_checksums, "open: verify_checksums")))
 
 
 class Hits:
@@ -245,6 +246,8 @@ class Scene:
             raise ValueError("rays (N, 8) carry their own tmin and tmax; pass tmin/tmax only with (N, 3) "
                              "origins and directions")
         tmin, tmax = _interval(tmin, tmax)
+        any_hit = _args.flag(any_hit, "trace: any_hit")
+        watertight = _args.flag(watertight, "trace: watertight")
         threads = _args.integer(threads, "trace: threads", 1, 1024, none=0)
         stream = _arrays.stream_handle(stream)
         o_dev = _arrays.device_view(origins, o_name, stream)
@@ -256,7 +259,7 @@ class Scene:
         o = _arrays.host_array(origins, o_name)
         d = None if packed else _arrays.host_array(directions, "directions")
         stats = {}
-        records, instance = self._h.trace_host(o, d, tmin, tmax, bool(any_hit), bool(watertight), threads, stats)
+        records, instance = self._h.trace_host(o, d, tmin, tmax, any_hit, watertight, threads, stats)
         return Hits(records[:, 0], records[:, 1], records[:, 2], records.view(_np.uint32)[:, 3], records, stats,
                     instance)
 

@@ -34,6 +34,14 @@ def integer(value, where, lo, hi=None, none=None, expected=None):
     return number
 
 
+def flag(value, where):
+    """`value` as a bool: True or False (numpy bools too). Anything else is a TypeError: Python's
+    truthiness would read deep="no" or any_hit="false" as True."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError("%s must be True or False, got %s" % (where, _got(value)))
+    return bool(value)
+
+
 def number(value, where):
     """`value` as a float: Python and numpy real numbers, not a bool, a str or None."""
     if isinstance(value, (bool, np.bool_, str, bytes)) or value is None:

@@ -40,7 +40,7 @@ def read_hits(path, instances=False):
     """A hit file as (records (N, 4) float32: t, u, v, prim bits; flags). A version 1.1 file
     (`cwbvh trace --hits` on a two-level file) carries instances and is refused unless
     instances=True, which returns (records, instances (N,) uint32 or None for a 1.0 file, flags)."""
-    if instances:
+    if _args.flag(instances, "read_hits: instances"):
         return _cwbvh.read_hits(fspath(path, "read_hits: path"), True)
     return _cwbvh.read_hits(fspath(path, "read_hits: path"))
 

@@ -73,6 +73,12 @@ def misuse(scene, rays, out):
     pybind11's list of signatures or a silent conversion (2.5 -> 2, None -> NaN, '0' -> GPU 0)."""
     o, d = np.ascontiguousarray(rays[:, 0:3]), np.ascontiguousarray(rays[:, 4:7])
     return [
+        # Yes/no arguments: Python's truthiness would read "no" and "false" as True.
+        (lambda: cwbvh.open(scene.path, deep="no"), TypeError, r"open: deep must be True or False, got 'no'"),
+        (lambda: cwbvh.open(scene.path, verify_checksums=None), TypeError, r"open: verify_checksums must be True"),
+        (lambda: scene.trace(o, d, any_hit="false"), TypeError, r"trace: any_hit must be True or False"),
+        (lambda: scene.trace(o, d, watertight=0), TypeError, r"trace: watertight must be True or False, got 0"),
+        (lambda: cwbvh.read_hits(out, instances="yes"), TypeError, r"read_hits: instances must be True or False"),
         (lambda: cwbvh.compile(None, out), TypeError, "compile: inputs must be a path or a list of paths"),
         (lambda: cwbvh.compile(3, out), TypeError, "compile: inputs must be a path"),
         (lambda: cwbvh.compile("x.obj", out, threads="2"), TypeError, r"compile: threads must be None or an integer"),
