@@ -14,8 +14,8 @@ __global__ void probe_empty(const uint32_t* in, uint32_t* out) { out[threadIdx.x
 
 /// One CWBVH node step: load + visit_node (8 box tests, hit mask). kFast: the
 /// common path, intersect_node_fast (rays that pass fast_node_test_applies);
-/// otherwise intersect_node_scalar for rays with no zero direction component (the
-/// exact zero-direction filter compiled out).
+/// otherwise intersect_node_scalar (its rare reach filter for unbounded axes included:
+/// the probe's lane may hold norcp where that filter reads the reach; sizes only).
 template <TriangleTest kTest, bool kFast>
 __global__ void probe_cwbvh_node(const CwbvhNode* nodes, const Ray* rays, uint32_t* out, NodeScale scale) {
     CwbvhLane<kTest> l(gpu::load_ray(rays + threadIdx.x), scale);

@@ -18,9 +18,9 @@
 namespace cwbvh::test {
 namespace {
 
-// Exact: does {o + t d : tmin <= t <= tmax, |t| <= FLT_MAX} touch the closed box [lo, hi]?
-// (A hit beyond the float range is no hit: spec/rays.md.) Slab intervals are compared as
-// fractions with expansion arithmetic (oracle.h).
+// Exact: does {o + t d : tmin <= t <= tmax, |t| <= 2^128} touch the closed box [lo, hi]?
+// (A hit whose t rounds beyond the float range is no hit: spec/rays.md.) Slab intervals are
+// compared as fractions with expansion arithmetic (oracle.h).
 bool exact_box_hit(const float* lo, const float* hi, const Ray& r) {
     // For each bounded axis: t0 = N0/|d|, t1 = N1/|d| with N = (plane - o) * sign(d).
     struct Frac {
@@ -62,8 +62,9 @@ bool exact_box_hit(const float* lo, const float* hi, const Ray& r) {
         e.add(q);
         return e.sign() <= 0;
     };
-    const float tmin = std::max(r.tmin, -FLT_MAX), tmax = std::min(r.tmax, FLT_MAX);
-    const Frac fmin{{double(tmin), 0.0}, 1.0f}, fmax{{double(tmax), 0.0}, 1.0f};
+    const double two128 = std::ldexp(1.0, 128);
+    const double tmin = std::max(double(r.tmin), -two128), tmax = std::min(double(r.tmax), two128);
+    const Frac fmin{{tmin, 0.0}, 1.0f}, fmax{{tmax, 0.0}, 1.0f};
     for (int i = 0; i < n; ++i) {
         if (!le(fmin, t1[i])) return false;
         if (!le(t0[i], fmax)) return false;

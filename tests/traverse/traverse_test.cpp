@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -463,6 +464,64 @@ TEST(Traverse, TinyAndHugeDirectionComponentsStillCull) {
             EXPECT_EQ(a.errors(), 0u);
             EXPECT_LE(a.skipped_fraction(), 0.01);
         }
+    }
+}
+
+// The reach's two edges, each once missed by the first version of it (a review, 2026-11-27):
+//  (1) tmin < 0: the segment extends behind the origin, so an axis without slab culling
+//      stays open. enable_fast_node_test (the GPU lanes, query.h, every traversal given the
+//      scene's NodeScale) once cleared the open bits, and the hit at t = -8.5e37 behind the
+//      origin was culled there while the CPU reference found it.
+//  (2) A hit whose exact t lies between FLT_MAX and 2^128 rounds to t = FLT_MAX, a hit
+//      (spec/rays.md); a reach cut at FLT_MAX culled it.
+TEST(Traverse, ReachKeepsHitsBehindTheOriginAndUpToTwoToThe128) {
+    auto quad = [](float x, uint32_t prim, std::vector<TriangleRecord>& t) {
+        const float a[3] = {x, -1, -1}, b[3] = {x, 1, -1}, c[3] = {x, 1, 1}, d[3] = {x, -1, 1};
+        t.push_back(make_tri(a, b, c, prim));
+        t.push_back(make_tri(a, c, d, prim + 1));
+    };
+    struct Case {
+        const char* what;
+        float quad_x;
+        Ray ray;
+        float t;  // the hit's t
+    };
+    const float tiny = std::ldexp(1.0f, -140);
+    const float far_x = -(std::ldexp(1.0f, -25) + std::ldexp(1.0f, -40));
+    const Case cases[] = {
+        {"tmin -inf, subnormal direction, hit behind the origin", -std::ldexp(1.0f, -14),
+         Ray{{0, 0, 0}, -INFINITY, {tiny, tiny / 2, tiny / 4}, INFINITY}, -std::ldexp(1.0f, -14) / tiny},
+        {"tmin -3e38", -std::ldexp(1.0f, -14), Ray{{0, 0, 0}, -3e38f, {tiny, tiny / 2, tiny / 4}, INFINITY},
+         -std::ldexp(1.0f, -14) / tiny},
+        {"exact t in (FLT_MAX, 2^128)", far_x, Ray{{-1, 0.1f, 0.2f}, 0, {std::ldexp(1.0f, -128), 0, 0}, INFINITY},
+         FLT_MAX},
+    };
+    for (const Case& c : cases) {
+        std::vector<TriangleRecord> tris = random_soup(3000, 40, 1, 5);  // clutter at 0..40
+        for (auto& t : tris)
+            for (float* v : {t.v0, t.v1, t.v2}) v[0] += 100;  // away from the quad
+        quad(c.quad_x, 1000000, tris);
+        const Scene s(tris);
+        const NodeScale scale = node_scale(s.wide.nodes.data(), s.wide.nodes.size());
+        ASSERT_NE(scale.usable, 0u);
+        Hit h;
+        EXPECT_EQ((s.trace<TriangleTest::kWatertight, HitMode::kClosest>(c.ray, h)), TraceStatus::kOk);
+        EXPECT_GE(h.prim, 1000000u) << c.what << ": CPU reference";
+        EXPECT_EQ(h.t, c.t) << c.what;
+        LocalStack<kCpuStackSize> stack;
+        Hit hs;
+        traverse_cwbvh<TriangleTest::kWatertight, HitMode::kClosest>(
+            s.wide.nodes.data(), uint32_t(s.wide.nodes.size()), s.wide.tris.data(), uint32_t(s.wide.tris.size()),
+            c.ray, hs, stack, nullptr, NoPostpone(), scale);
+        EXPECT_GE(hs.prim, 1000000u) << c.what << ": with the scene's NodeScale (the kernels' set-up)";
+        EXPECT_EQ(hs.t, c.t) << c.what;
+        Hit h2;
+        s.trace2<TriangleTest::kWatertight, HitMode::kClosest>(c.ray, h2);
+        EXPECT_GE(h2.prim, 1000000u) << c.what << ": BVH2";
+        NodeRay nr = make_node_ray(c.ray);
+        const uint32_t open = ~nr.reach_axis_bits() & 7u;
+        enable_fast_node_test(nr, scale, c.ray.dir, c.ray.tmin == 0.0f ? 0.0f : c.ray.tmin);
+        EXPECT_EQ(~nr.reach_axis_bits() & 7u, open) << c.what << ": enable_fast_node_test keeps the open axes";
     }
 }
 

@@ -9,9 +9,10 @@
 // component then visited every node (bunny: 5,515 nodes and 56,737 triangle tests per
 // ray; tests/traverse/traverse_test.cpp, TinyAndHugeDirectionComponentsStillCull).
 //
-// What culls there instead: a hit beyond the float range is no hit (spec/rays.md), so
-// only t in [tmin, min(tmax, FLT_MAX)] matters. For tmin >= 0 coordinate a then stays
-// between o and the reach e = o + d min(tmax, FLT_MAX), and a box whose [lo, hi] on that
+// What culls there instead: a hit beyond the float range is no hit (spec/rays.md: t
+// rounds to a finite float, so exact t < 2^128), so only t in [tmin, min(tmax, 2^128)]
+// matters. For tmin >= 0 coordinate a then stays between o and the reach
+// e = o + d min(tmax, 2^128), and a box whose [lo, hi] on that
 // axis misses [min(o, e), max(o, e)] cannot be hit. For d = +-0, e = o: the exact
 // "origin inside the slab" test. For a subnormal d the range is at most 2^-126 * 2^128 = 4
 // long (1e-40: 0.034); for |d| > 2^126 it is everything ahead of the origin, so such a ray
@@ -20,7 +21,7 @@
 //
 // The reach is computed once per ray (set-up), from the ray's tmax, which only shrinks:
 // float compares in the node step, nothing wider. Rounding: d * T is exact in double
-// (24 x 24 significand bits, exponents 2^-298 .. 2^256), o + d T rounds once (within
+// (24 x 24 significand bits, exponents 2^-298 .. 2^256; T = 2^128 is a power of two), o + d T rounds once (within
 // 2^-53 |x| of the exact x; x = 0 only when the exact sum is 0), the end moves outwards by
 // 2^-50 |x| and that sum rounds once more (net outward by more than 2^-53 |x|), then the
 // conversion to float rounds outwards (the next float up or down where it rounded
@@ -38,6 +39,9 @@
 namespace cwbvh {
 
 inline constexpr float kFloatMax = 3.40282347e+38f;  ///< FLT_MAX
+/// 2^128: the least t that rounds to +inf in float. The triangle tests report a hit whose
+/// exact t is below it (RN(t) = FLT_MAX), so the reach must extend that far.
+inline constexpr double kTwo128 = 3.4028236692093846e+38;
 
 /// Whether segment_reach takes its double path for direction component d (d != 0 outside
 /// 2^-64 .. 2^64); otherwise the reach is o (d = +-0) or +-inf.
@@ -47,12 +51,12 @@ CWBVH_HD CWBVH_INLINE bool reach_needs_double(float d) {
 }
 
 /// The reach of the segment on one axis (see above): a float e such that for t in
-/// [max(tmin, 0), min(tmax, FLT_MAX)] coordinate o + d t lies between o and e. tmax: not
+/// [max(tmin, 0), min(tmax, 2^128)] coordinate o + d t lies between o and e. tmax: not
 /// NaN, >= 0 when it matters (a traceable ray with tmin >= 0).
 CWBVH_HD CWBVH_INLINE float segment_reach(float o, float d, float tmax) {
     if (d == 0.0f) return o;
     if (!reach_needs_double(d)) return d > 0.0f ? kInfinity : -kInfinity;
-    const double t = double(tmax > kFloatMax ? kFloatMax : tmax);
+    const double t = tmax > kFloatMax ? kTwo128 : double(tmax);
     const double x = double(o) + double(d) * t;  // d * t exact: one rounding, fma or not
     constexpr double kWiden = 8.8817841970012523e-16;  // 2^-50
     const bool up = d > 0.0f;  // the reach lies above o: round up, else down

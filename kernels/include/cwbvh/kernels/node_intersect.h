@@ -3,10 +3,10 @@
 // made conservative in the manner of Ize 2013, "Robust BVH Ray Traversal".
 //
 // Contract (tested in tests/traverse/node_intersect_test.cpp): for a traceable
-// ray (ray.h), if the exact segment {org + t*dir : tmin <= t <= tmax, |t| <= FLT_MAX}
+// ray (ray.h), if the exact segment {org + t*dir : tmin <= t <= tmax, |t| < 2^128}
 // touches the closed box a slot decodes to (node_decode.h, decode_plane), that slot's
-// bits are set in the returned hit mask. (A hit beyond the float range is no hit,
-// spec/rays.md.) Extra bits (false positives) are allowed; they cost a little time and
+// bits are set in the returned hit mask. (A hit whose t rounds beyond the float range is
+// no hit, spec/rays.md.) Extra bits (false positives) are allowed; they cost a little time and
 // never change a result.
 //
 // Two implementations of the same arithmetic:

@@ -175,10 +175,19 @@ CWBVH_HD CWBVH_INLINE void enable_fast_node_test(NodeRay& r, const NodeScale& sc
         norcp[a] = -mul_rn(moved[a], r.rcp[a]);
     }
     int rexp = 0;
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 800
+    // Before sm_80 intersect_node_dispatch runs the reference test for every ray, which
+    // reads reach: norcp must not overwrite it there.
+    const bool fast = false;
+    (void)sc;
+#else
     const bool fast = r.zero_axis_bits() == 0 && fast_node_test_applies(sc, moved, r.rcp, tmin, &rexp);
-    r.zero_axes = r.zero_axis_bits() | (fast ? NodeRay::kFastBit : 0u);
+#endif
+    // Keeps the zero and open axis bits (a tmin < 0 ray never takes the fast test, and its
+    // open axes must stay open).
+    r.zero_axes = (r.zero_axes & ~NodeRay::kFastBit) | (fast ? NodeRay::kFastBit : 0u);
     r.frame = fast ? uint32_t(243 - rexp) << 23 : 0u;
-    // norcp shares its registers with dir, which the reference test reads (NodeRay).
+    // norcp shares its registers with reach, which the reference test reads (NodeRay).
     if (fast)
         for (int a = 0; a < 3; ++a) r.norcp[a] = norcp[a];
 }
