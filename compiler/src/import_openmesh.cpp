@@ -135,6 +135,13 @@ int64_t off_declared_faces(const std::string& path) {
     return -1;
 }
 
+/// `t` for an error message: a control character (a NUL would end the printed line) as '?'.
+std::string printable(std::string t) {
+    for (char& c : t)
+        if ((static_cast<unsigned char>(c) < 0x20 && c != '\t') || c == 0x7f) c = '?';
+    return t;
+}
+
 /// Opens `path` for one of the header checks below (binary mode, so sizes
 /// and offsets are bytes); `size` gets the file's size. False: cannot open.
 bool open_for_check(const std::string& path, std::ifstream& f, uint64_t& size, std::string& error) {
@@ -156,8 +163,10 @@ bool open_for_check(const std::string& path, std::ifstream& f, uint64_t& size, s
 /// loops forever on `while (keyword != "end_header")` once its stream has
 /// failed (a non-numeric version or count, or end of file). Replay its
 /// token reads from the start of `f` and reject the header where either would happen.
-bool check_ply_tokens(std::istream& f, std::string& error) {
-    std::string line, keyword, file_type, a, b, c;
+/// `file_type`: the word OpenMesh takes for the format (the second word after the "ply"
+/// line, whatever the first is: "foo ascii 1.0" reads as ASCII).
+bool check_ply_tokens(std::istream& f, std::string& error, std::string& file_type) {
+    std::string line, keyword, a, b, c;
     std::getline(f, line);  // "ply" (OpenMesh refuses anything else before parsing on)
     float version = 0;
     f >> keyword >> file_type >> version;
@@ -211,6 +220,12 @@ std::string face_too_large(uint64_t k) {
 ///  - `f`: a face vertex with a texture index but no position index ("f /1 2 3") trips
 ///    `assert(!vhandles.empty())` (Debian builds it with assertions on): reject it;
 ///    a face of more than kMaxFaceVertices vertices: reject it (quadratic import).
+///    OpenMesh does not end a face's data at '#': it reads every block of the line and
+///    skips only those that are not numbers, so "f 1 2 3 # f 2 3 4" became the quad 1 2 3 4
+///    (with no message). A comment after the vertices is accepted where OpenMesh skips all
+///    of it: no block of it starts with an integer ([+-]digit) and none holds a '/' (whose
+///    parts it reads as indices); otherwise the line is rejected. `v` lines need no such
+///    rule: x y z stop at a '#' ("v 1 2 # 3" fails above), and what follows them is unread.
 /// The same pass counts `declared` (count_obj_element) on every line, comments and
 /// whitespace-led lines included, before the keyword rule skips any.
 bool check_obj(const std::string& path, std::string& error, DeclaredCounts& declared) {
@@ -247,6 +262,7 @@ bool check_obj(const std::string& path, std::string& error, DeclaredCounts& decl
             }
         } else if (keyword == "f") {
             uint64_t k = 0;
+            bool comment = false;  // a '#' was seen: the rest of the line is a comment
             while (in >> block) {
                 if (block[0] == '/') {
                     error = "OBJ line " + std::to_string(number) + ": face vertex '" + quote(block) +
@@ -257,6 +273,20 @@ bool check_obj(const std::string& path, std::string& error, DeclaredCounts& decl
                     error = "OBJ line " + std::to_string(number) + ": " + face_too_large(k) + " or more";
                     return false;
                 }
+                // The block holding the '#' ("3#x" is read as 3: only a '/' after its '#' counts),
+                // then every block after it.
+                const size_t hash = comment ? 0 : block.find('#');
+                if (hash == std::string::npos) continue;
+                const size_t digit = block[0] == '+' || block[0] == '-' ? 1 : 0;
+                const bool integer = (comment || hash == 0) && block.size() > digit &&
+                                     std::isdigit(static_cast<unsigned char>(block[digit]));
+                if (integer || block.find('/', hash) != std::string::npos) {
+                    error = "OBJ line " + std::to_string(number) + ": the comment after the face's vertices holds '" +
+                            printable(quote(block)) + "', which OpenMesh's reader would read as face data (it does not stop "
+                            "at '#'; the face would change): put the comment on a line of its own";
+                    return false;
+                }
+                comment = true;
             }
         }
     }
@@ -269,6 +299,13 @@ bool check_obj(const std::string& path, std::string& error, DeclaredCounts& decl
 ///    cannot hold, e.g. 10^11 elements or elements without properties. Every element
 ///    takes at least one byte in ASCII and binary PLY, so require a property per element
 ///    and sum(counts) <= body size.
+///  - 'end_header' alone on its line: OpenMesh's token header ends at the word, and its body
+///    read starts right after it, so "end_header x" had it read 'x' as data (uninitialised
+///    values in _PLYReader_::read_ascii: an error, or a hang, by what memory held).
+///  - One 'format' line: OpenMesh takes the type from the first and ignores later ones
+///    ("Unsupported keyword"), so "format ascii 1.0" then "format binary_little_endian 1.0"
+///    is an ambiguous header: refused. The ASCII test below takes the type OpenMesh takes
+///    (check_ply_tokens), not our line reading's.
 ///  - ASCII (format ascii 1.0): OpenMesh reads the body with >> and keeps going after the
 ///    stream has failed, so a body shorter than its header (a truncated file) repeats the
 ///    last face it read (a duplicate triangle, exit 0). Replay the reads: every element
@@ -280,7 +317,8 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
     std::ifstream f;
     uint64_t size = 0;
     if (!open_for_check(path, f, size, error)) return false;
-    if (!check_ply_tokens(f, error)) return false;
+    std::string file_type;
+    if (!check_ply_tokens(f, error, file_type)) return false;
     f.clear();
     f.seekg(0);
     declared = DeclaredCounts{};
@@ -290,7 +328,9 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
         std::vector<bool> is_list;
     };
     std::vector<Element> elements;
-    bool ascii = false, face_seen = false;
+    const bool ascii = file_type == "ascii";
+    bool face_seen = false;
+    int format_line = 0;  // the line number of the first 'format' line
     std::string line;
     uint64_t total = 0;
     bool in_element = false, element_has_property = true, end_header = false;
@@ -310,6 +350,14 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
                 if (total > body) {
                     error = "PLY header declares " + std::to_string(total) +
                             " elements but only " + std::to_string(body) + " bytes follow";
+                    return false;
+                }
+                std::string after;
+                if (in >> after) {
+                    error = "PLY header line " + std::to_string(n + 1) + ": 'end_header' is followed by '" +
+                            printable(after.size() > 48 ? after.substr(0, 48) + "..." : after) +
+                            "' (OpenMesh reads the body from right after the word end_header, so it would "
+                            "read this as data)";
                     return false;
                 }
                 end_header = true;
@@ -339,9 +387,12 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
             in >> a;
             if (!elements.empty()) elements.back().is_list.push_back(a == "list");
         } else if (word == "format") {
-            std::string a;
-            in >> a;
-            ascii = a == "ascii";
+            if (format_line > 0) {
+                error = "PLY header has more than one 'format' line (lines " + std::to_string(format_line) + " and " +
+                        std::to_string(n + 1) + "): OpenMesh reads the first, so the file's format is ambiguous";
+                return false;
+            }
+            format_line = n + 1;
         }
     }
     if (!end_header) {
@@ -390,15 +441,29 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
 /// STL. Binary: 80 bytes, a triangle count n, then n 50-byte records; a file whose size is
 /// not 84 + 50 n is read by OpenMesh as ASCII and gives "no triangles" without saying why,
 /// so a file that does not start with "solid" and whose size disagrees with its count is
-/// refused with both numbers. ASCII: every `facet` must be complete (three `vertex x y z`
-/// lines and `endfacet`); a file cut inside one is refused instead of read in part.
+/// refused with both numbers.
+///
+/// ASCII is read twice, line by line, in one pass:
+///  - as words (the file's own meaning, keywords in any case): every `facet` must be complete
+///    (three `vertex x y z` and `endfacet`); a file cut inside one is refused instead of read
+///    in part ("truncated or malformed").
+///  - as OpenMesh 9.0's _STLReader_::read_stla does, which is line-based: getline, and at any
+///    line containing "outer" or "OUTER" (anywhere: "solid router" too; "Outer" is not seen)
+///    it takes the NEXT THREE lines as `<word> x y z` with >>, whatever they hold. A vertex
+///    whose x y z do not all parse keeps what the previous vertex left, and the first one
+///    is uninitialised memory: "facet ... outer loop vertex 0 0 0 vertex ..." on one line
+///    compiled to a triangle whose coordinates changed from run to run (exit 0).
+///  Both readings must give the same vertices on the same lines (bit for bit), every line
+///  OpenMesh reads as a vertex must be `vertex x y z`, and no 'outer' line may be left
+///  without its three lines. So every layout OpenMesh reads correctly is accepted (keywords
+///  in either of its cases, 'solid name' lines, blank lines between facets, leading blanks,
+///  CRLF, 'endloop endfacet' on one line) and any other is refused naming the line. As the
+///  words are the file's words, the float reads stop where >> stops ("1-2" is 1 then -2),
+///  in both readings.
 /// declared.faces: binary, the header's count; ASCII, the words "facet" exactly as written
 /// (lower case), every word of the file counted, those of the solid / endsolid lines too
 /// ("solid my facet model" counts one; "FACET" none): the count the warning has always
-/// used, kept as it is. The x y z of a `vertex` are read as floats, which can stop inside
-/// a word ("1-2"): such a word starts with a number, so it is never "facet", and a
-/// "facet" left after the number breaks the check (a facet inside a facet), so on every
-/// file the check accepts the words seen are the file's words.
+/// used, kept as it is.
 bool check_stl(const std::string& path, std::string& error, DeclaredCounts& declared) {
     std::ifstream f;
     uint64_t size = 0;
@@ -430,39 +495,142 @@ bool check_stl(const std::string& path, std::string& error, DeclaredCounts& decl
     }
     f.clear();
     f.seekg(0);
-    std::string word;
+    auto lower = [](std::string& w) {
+        for (char& c : w) c = char(std::tolower(static_cast<unsigned char>(c)));  // FACET, Vertex, ...
+    };
+    auto quote = [](const std::string& t) {
+        const size_t b = t.find_first_not_of(" \t\r\n"), e = t.find_last_not_of(" \t\r\n");
+        const std::string s = b == std::string::npos ? std::string() : t.substr(b, e - b + 1);
+        return "'" + printable(s.size() > 48 ? s.substr(0, 48) + "..." : s) + "'";
+    };
+    struct Vertex {
+        float x[3];
+        bool operator==(const Vertex& o) const { return std::memcmp(x, o.x, sizeof x) == 0; }
+    };
+    // The word reading (a vertex's x y z may run over lines, as with >> on the file).
+    std::string line, word;
+    std::istringstream in, om;
     uint64_t facets = 0, vertices = 0, complete = 0;
     int64_t facet_words = 0;
-    bool open = false;
-    while (f >> word) {
-        if (word == "facet") ++facet_words;
-        for (char& c : word) c = char(std::tolower(static_cast<unsigned char>(c)));  // FACET, Vertex, ...
-        if (word == "solid" || word == "endsolid") {  // the name may hold any word ("my facet model")
-            std::getline(f, word);
-            std::istringstream name(word);
-            while (name >> word)
-                if (word == "facet") ++facet_words;
-            continue;
+    bool open = false, broken = false;
+    int pending = 0;  // coordinates still to read of the current vertex
+    Vertex v{};
+    std::vector<Vertex> on_line;  // the vertices the word reading completed on this line
+    // OpenMesh's reading.
+    int om_left = 0;  // lines it still takes as vertices after its last 'outer' line
+    uint64_t om_outer = 0, number = 0, solid_line = 0;  // solid_line: the last 'solid' / 'endsolid' line
+    std::string mismatch;  // the first line where the two readings differ
+    while (!broken && std::getline(f, line)) {
+        ++number;
+        const bool om_line = om_left > 0;  // OpenMesh reads this line as a vertex
+        if (om_line) {
+            --om_left;
+        } else if (line.find("outer") != std::string::npos || line.find("OUTER") != std::string::npos) {
+            om_left = 3;
+            om_outer = number;
         }
-        if (word == "facet") {
-            if (open) break;  // the previous facet never ended
-            open = true;
-            vertices = 0;
-            ++facets;
-        } else if (word == "vertex" && open) {
-            float x = 0, y = 0, z = 0;
-            if (!(f >> x >> y >> z)) break;
-            ++vertices;
-        } else if (word == "endfacet" && open) {
-            if (vertices != 3) break;
-            open = false;
-            ++complete;
+
+        on_line.clear();
+        in.str(line);
+        in.clear();
+        // The line's first word is 'vertex' and its x y z (read from the same stream state as
+        // OpenMesh's >> would) complete here: on_line[0] is OpenMesh's reading too.
+        bool lead_vertex = false;
+        const bool fresh = pending == 0;
+        for (bool first = true;; first = false) {
+            if (pending > 0) {
+                in >> std::ws;
+                if (in.eof()) break;  // the next coordinate is on a later line
+                if (!(in >> v.x[3 - pending])) {
+                    broken = true;
+                    break;
+                }
+                if (--pending == 0) {
+                    ++vertices;
+                    on_line.push_back(v);
+                }
+                continue;
+            }
+            if (!(in >> word)) break;
+            if (word == "facet") ++facet_words;
+            lower(word);
+            if (word == "solid" || word == "endsolid") {  // the name may hold any word ("my facet model")
+                solid_line = number;
+                while (in >> word)
+                    if (word == "facet") ++facet_words;
+                break;
+            }
+            if (word == "facet") {
+                if (open) {  // the previous facet never ended
+                    broken = true;
+                    break;
+                }
+                open = true;
+                vertices = 0;
+                ++facets;
+            } else if (word == "vertex" && open) {
+                pending = 3;
+                lead_vertex = first && fresh;
+            } else if (word == "endfacet" && open) {
+                if (vertices != 3) {
+                    broken = true;
+                    break;
+                }
+                open = false;
+                ++complete;
+            }
         }
+        if (broken || !mismatch.empty()) continue;
+
+        bool om_vertex = false;
+        Vertex w{};
+        if (om_line && lead_vertex && !on_line.empty()) {
+            om_vertex = true;
+            w = on_line[0];
+        } else if (om_line) {  // OpenMesh: getline, trim, >> word >> x >> y >> z
+            om.str(line);
+            om.clear();
+            std::string first;
+            om >> first >> w.x[0] >> w.x[1] >> w.x[2];
+            lower(first);
+            om_vertex = !om.fail() && first == "vertex";
+            if (!om_vertex) {
+                mismatch = "ASCII STL line " + std::to_string(number) + ": " + quote(line) +
+                           " is not 'vertex x y z', but OpenMesh's line-based reader takes the three lines after "
+                           "line " + std::to_string(om_outer) + " (a line containing 'outer') for the triangle's "
+                           "vertices ('outer loop' and each 'vertex x y z' must be on a line of their own)";
+                continue;
+            }
+        }
+        if (on_line.size() == (om_vertex ? 1u : 0u) && (!om_vertex || on_line[0] == w)) continue;
+        const std::string at = "ASCII STL line " + std::to_string(number) + ": ";
+        if (on_line.size() > 1 || (on_line.size() == 1 && !om_vertex))
+            mismatch = at + quote(line) + " holds a vertex that OpenMesh's line-based reader does not read (it reads " +
+                       "a triangle only from the three lines right after a line containing 'outer' or 'OUTER'; " +
+                       "'outer loop' and each 'vertex x y z' must be on a line of their own)";
+        else if (on_line.empty())
+            mismatch = at + "OpenMesh's line-based reader takes " + quote(line) + " for a vertex (the three lines " +
+                       "after line " + std::to_string(om_outer) + ", which contains 'outer') but it is not a " +
+                       "vertex of a facet" +
+                       (om_outer == solid_line ? " (line " + std::to_string(om_outer) + " is a 'solid' line: its name " +
+                                                     "runs to the end of the line, so no facet starts on it)"
+                                               : std::string());
+        else
+            mismatch = at + "OpenMesh's line-based reader reads another vertex from " + quote(line) +
+                       " than the file holds (a vertex's x y z must be on its 'vertex' line)";
     }
-    if (complete != facets || open) {
+    if (pending > 0) broken = true;  // the file ends inside a vertex
+    if (broken || complete != facets || open) {
         error = "ASCII STL is truncated or malformed at facet " + std::to_string(complete) + " (" +
                 std::to_string(complete) + " complete facets: each needs three 'vertex x y z' lines and "
                 "'endfacet')";
+        return false;
+    }
+    if (mismatch.empty() && om_left > 0)
+        mismatch = "ASCII STL line " + std::to_string(om_outer) + " contains 'outer', but the file ends before "
+                   "the three 'vertex x y z' lines OpenMesh's line-based reader takes after it";
+    if (!mismatch.empty()) {
+        error = mismatch;
         return false;
     }
     declared.faces = facet_words;

@@ -287,8 +287,12 @@ TEST(OpenMesh, DeclaredFaceCounts) {
         {"tabs.obj", v + "f\t1\t2\t3\nf\t2 4 3\n", "ok 2"},
         {"lead.obj", v + "   f 1 2 3\n \t f 2 4 3\n", "ok 2"},
         {"crlf.obj", v + "f 1 2 3\r\nf 2 4 3\r\nl 1 2\r\np 3\r\n", "ok 2; 1 lines; 1 points"},
-        // (OpenMesh reads a face line on past its '#': "f 1 2 3 # f 2 3 4" is the quad 1 2 3 4.)
-        {"comments.obj", v + "# f 1 2 3\n#f 1 2 3\n f 1 2 3 # f 2 3 4\n  # f 9 9 9\n", "ok 2"},
+        {"comments.obj", v + "# f 1 2 3\n#f 1 2 3\n f 1 2 3 # a comment\n  # f 9 9 9\n", "ok 1"},
+        // (OpenMesh reads a face line on past its '#': "f 1 2 3 # f 2 3 4" was the quad 1 2 3 4,
+        // "ok 2"; now refused: ObjCommentAfterFaceDataIsReadRightOrRefused.)
+        {"comment_data.obj", v + " f 1 2 3 # f 2 3 4\n",
+         "error: OBJ line 6: the comment after the face's vertices holds '2', which OpenMesh's reader would read as "
+         "face data (it does not stop at '#'; the face would change): put the comment on a line of its own"},
         {"negative.obj", v + "f -5 -4 -3\nf -4 -2 -3\n", "ok 2"},
         {"eof_blank.obj", v + "f 1 2 3\n\n\n  \n\t\n", "ok 1"},
         {"no_newline.obj", v + "f 1 2 3\nf 2 4 3", "ok 2"},
@@ -343,6 +347,162 @@ TEST(OpenMesh, DeclaredFaceCounts) {
          "and 'endfacet')"},
     };
     for (const Case& c : cases) EXPECT_EQ(declared_outcome(dir.write(c.name, c.text)), c.outcome) << c.name;
+}
+
+// OpenMesh's ASCII STL reader is line-based: at a line containing "outer" or "OUTER" it reads
+// the next three lines as "<word> x y z", whatever they hold, and a vertex whose numbers do not
+// parse keeps the previous vertex's values (the first one: uninitialised memory). Layouts it
+// misreads are refused naming the line; those it reads right are accepted, with the file's
+// vertices.
+TEST(OpenMesh, AsciiStlLayoutsOpenMeshMisreadsAreRefused) {
+    TempDir dir;
+    const std::string body = "vertex 0 0 0\nvertex 2 0 0\nvertex 0 2 0\n";
+    struct Case {
+        const char* name;
+        std::string text, error;  // error: a part of the message; empty: accepted
+    };
+    const Case cases[] = {
+        // Misread: refused.
+        {"one_line.stl", "solid t\nfacet normal 0 0 1 outer loop vertex 0 0 0 vertex 2 0 0 vertex 0 2 0 endloop endfacet\n"
+                         "endsolid t\n",
+         "ASCII STL line 2: 'facet normal 0 0 1 outer loop vertex 0 0 0 verte...' holds a vertex that OpenMesh's "
+         "line-based reader does not read"},
+        {"one_line_mixed.stl", "solid facet\nFacet normal 0 0 1 outer loop vertex 0 0 0 vertex 1 0 0 VERTEX 0 1 0 "
+                               "ENDLOOP Endfacet\nendsolid\n",
+         "ASCII STL line 2: "},
+        {"outer_with_vertex.stl", "solid t\nfacet normal 0 0 1\nouter loop vertex 0 0 0\nvertex 2 0 0\nvertex 0 2 0\n"
+                                  "endloop\nendfacet\nendsolid t\n",
+         "ASCII STL line 3: "},
+        {"blank_in_loop.stl", "solid t\nfacet normal 0 0 1\nouter loop\n\n" + body + "endloop\nendfacet\nendsolid t\n",
+         "ASCII STL line 4: '' is not 'vertex x y z', but OpenMesh's line-based reader takes the three lines after "
+         "line 3"},
+        {"two_vertices_a_line.stl", "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0 vertex 2 0 0\nvertex 0 2 0\n"
+                                    "endloop\nendfacet\nendsolid t\n",
+         "ASCII STL line 4: "},
+        {"split_vertex.stl", "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0\n0\nvertex 2 0 0\nvertex 0 2 0\n"
+                             "endloop\nendfacet\nendsolid t\n",
+         "ASCII STL line 4: "},
+        {"mixed_case_outer.stl", "solid t\nfacet normal 0 0 1\nOuter Loop\n" + body + "endloop\nendfacet\nendsolid t\n",
+         "ASCII STL line 4: 'vertex 0 0 0' holds a vertex that OpenMesh's line-based reader does not read"},
+        {"no_outer.stl", "solid t\nfacet normal 0 0 1\n" + body + "endfacet\nendsolid t\n", "ASCII STL line 3: "},
+        {"router.stl", "solid router\nfacet normal 0 0 1\nouter loop\n" + body + "endloop\nendfacet\nendsolid t\n",
+         "ASCII STL line 2: 'facet normal 0 0 1' is not 'vertex x y z', but OpenMesh's line-based reader takes the "
+         "three lines after line 1"},
+        {"router_end.stl", "solid t\nfacet normal 0 0 1\nouter loop\n" + body + "endloop\nendfacet\nendsolid router\n",
+         "ASCII STL line 9 contains 'outer', but the file ends before the three 'vertex x y z' lines"},
+        // Read right: accepted.
+        {"plain.stl", "solid t\nfacet normal 0 0 1\nouter loop\n" + body + "endloop\nendfacet\nendsolid t\n", ""},
+        {"upper.stl", "SOLID T\nFACET NORMAL 0 0 1\nOUTER LOOP\nVERTEX 0 0 0\nVERTEX 2 0 0\nVERTEX 0 2 0\nENDLOOP\n"
+                      "ENDFACET\nENDSOLID T\n", ""},
+        {"layout.stl", "\n  \t solid my part\r\n\r\n  facet normal 0 0 1\r\n\t outer loop  \r\n   vertex 0 0 0\r\n"
+                       "   vertex  2 0 0 \r\n\tvertex 0 2 0\r\n endloop endfacet\r\n\r\nendsolid my part\r\n", ""},
+        {"facet_and_outer.stl", "solid t\nfacet normal 0 0 1 outer loop\n" + body + "endloop\nendfacet\nendsolid", ""},
+        {"no_endloop.stl", "solid t\nfacet normal 0 0 1\nouter loop\n" + body + "endfacet\nendsolid t\n", ""},
+    };
+    for (const Case& c : cases) {
+        const auto r = import_files({dir.write(c.name, c.text)});
+        if (!c.error.empty()) {
+            ASSERT_FALSE(r.ok) << c.name;
+            EXPECT_NE(r.error.find(c.name), std::string::npos) << r.error;
+            EXPECT_NE(r.error.find(c.error), std::string::npos) << c.name << ": " << r.error;
+            continue;
+        }
+        ASSERT_TRUE(r.ok) << c.name << ": " << r.error;
+        ASSERT_EQ(r.scene.triangle_count(), 1u) << c.name;
+        EXPECT_EQ(r.scene.triangle(0)[0], (Vec3{0, 0, 0})) << c.name;
+        EXPECT_EQ(r.scene.triangle(0)[1], (Vec3{2, 0, 0})) << c.name;
+        EXPECT_EQ(r.scene.triangle(0)[2], (Vec3{0, 2, 0})) << c.name;
+        // (upper.stl: "the file declares 0 faces", the count rule's lower-case "facet".)
+        if (std::string(c.name) != "upper.stl") {
+            EXPECT_TRUE(r.warnings.empty()) << c.name << ": " << r.warnings.front();
+        }
+    }
+}
+
+// OpenMesh reads every block of an 'f' line, a '#' comment's too, and skips only those that
+// are not numbers: a comment whose words it would take as face data is refused; one it skips
+// is accepted, and so is a comment after a vertex's x y z.
+TEST(OpenMesh, ObjCommentAfterFaceDataIsReadRightOrRefused) {
+    TempDir dir;
+    const std::string v = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 2 2 0\n";
+    for (const auto& [line, word] : std::vector<std::pair<std::string, std::string>>{
+             {"f 1 2 3 # f 2 3 4", "'2'"},
+             {"f 1 2 3 # -1", "'-1'"},
+             {"f 1 2 3 # +4", "'+4'"},
+             {"f 1 2 3 #/4", "'#/4'"},
+             {"f 1 2 3 # see 4/5", "'4/5'"},
+             {"f 1 2#3 4", "'4'"},
+             {"f 1 2 3#/4", "'3#/4'"},
+             {"f 1 2 3 # 0x10", "'0x10'"},
+         }) {
+        const auto r = import_files({dir.write("c.obj", v + line + "\n")});
+        ASSERT_FALSE(r.ok) << line;
+        EXPECT_NE(r.error.find("c.obj: OBJ line 6: the comment after the face's vertices holds " + word +
+                               ", which OpenMesh's reader would read as face data"),
+                  std::string::npos)
+            << line << ": " << r.error;
+    }
+    for (const std::string line : {"f 1 2 3 # a comment", "f 1 2 3 #c", "f 1 2 3#x", "f 1 2 3 # v1.2 -x +y #",
+                                   "f 1 2 3 #\r", "f 1 2 3\t# tab"}) {
+        const auto r = import_files({dir.write("ok.obj", v + line + "\n")});
+        ASSERT_TRUE(r.ok) << line << ": " << r.error;
+        ASSERT_EQ(r.scene.triangle_count(), 1u) << line;
+        EXPECT_EQ(r.scene.indices[0], (std::array<uint32_t, 3>{0, 1, 2})) << line;
+        EXPECT_TRUE(r.warnings.empty()) << line << ": " << r.warnings.front();
+    }
+    const auto r = import_files({dir.write(
+        "v.obj", "v 0 0 0 # first\nv 3 0 0 # 5 6 7\nv 0 3 0# f 1 2 3\nv 9 9 9 #\nf 1 2 3 # the triangle\n")});
+    ASSERT_TRUE(r.ok) << r.error;
+    ASSERT_EQ(r.scene.triangle_count(), 1u);
+    EXPECT_EQ(r.scene.triangle(0)[1], (Vec3{3, 0, 0}));
+    EXPECT_EQ(r.scene.triangle(0)[2], (Vec3{0, 3, 0}));
+}
+
+// OpenMesh takes a PLY's format from the first line after "ply" (its second word, whatever its
+// first) and ignores later 'format' lines; our ASCII body check used the last 'format' line, so
+// "format ascii" then "format binary_little_endian" skipped the check, and a truncated body
+// read as a repeated face (exit 0). Two 'format' lines are refused; the check follows OpenMesh.
+// A word after end_header on its line is refused (OpenMesh read it as body data, with
+// uninitialised values: an error or a hang).
+TEST(OpenMesh, PlyFormatIsTheOneOpenMeshReads) {
+    TempDir dir;
+    const std::string rest = "element vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                             "element face 2\nproperty list uchar int vertex_indices\nend_header\n"
+                             "0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n";
+    for (const std::string second : {"format binary_little_endian 1.0\n", "format ascii 1.0\n",
+                                     "comment x\nformat binary_big_endian 1.0\n"}) {
+        for (const std::string end : {"", "3 1 3 2\n"}) {
+            const auto r = import_files({dir.write("f.ply", "ply\nformat ascii 1.0\n" + second + rest + end)});
+            ASSERT_FALSE(r.ok) << second << end;
+            EXPECT_NE(r.error.find("f.ply: PLY header has more than one 'format' line (lines 2 and "),
+                      std::string::npos)
+                << r.error;
+        }
+    }
+    // The type OpenMesh reads, under another first word: the truncation check applies.
+    auto r = import_files({dir.write("foo.ply", "ply\nfoo ascii 1.0\n" + rest)});
+    ASSERT_FALSE(r.ok);
+    EXPECT_NE(r.error.find("foo.ply: PLY file is truncated or unparsable at face 1 of 2"), std::string::npos) << r.error;
+    r = import_files({dir.write("foo2.ply", "ply\nfoo ascii 1.0\n" + rest + "3 1 3 2\n")});
+    ASSERT_TRUE(r.ok) << r.error;
+    EXPECT_EQ(r.scene.triangle_count(), 2u);
+    // OpenMesh's body read starts right after the word end_header.
+    for (const std::string after : {" x", " 0", "\tcomment", " x\r"}) {
+        std::string text = "ply\nformat ascii 1.0\n" + rest + "3 1 3 2\n";
+        text.insert(text.find("end_header") + 10, after);
+        r = import_files({dir.write("end.ply", text)});
+        ASSERT_FALSE(r.ok) << after;
+        EXPECT_NE(r.error.find("end.ply: PLY header line 9: 'end_header' is followed by '"), std::string::npos)
+            << r.error;
+    }
+    std::string blanks = "ply\nformat ascii 1.0\n" + rest + "3 1 3 2\n";
+    blanks.insert(blanks.find("end_header") + 10, " \t\r");
+    r = import_files({dir.write("end_ws.ply", blanks)});
+    ASSERT_TRUE(r.ok) << r.error;
+    EXPECT_EQ(r.scene.triangle_count(), 2u);
+    r = import_files({dir.write("one.ply", "ply\nformat ascii 1.0\n" + rest)});
+    ASSERT_FALSE(r.ok);
+    EXPECT_NE(r.error.find("one.ply: PLY file is truncated or unparsable at face 1 of 2"), std::string::npos) << r.error;
 }
 
 TEST(Import, MergeSetsSourceInputAndNames) {
