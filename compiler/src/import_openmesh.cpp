@@ -276,7 +276,21 @@ bool check_obj(const std::string& path, std::string& error, DeclaredCounts& decl
                 // The block holding the '#' ("3#x" is read as 3: only a '/' after its '#' counts),
                 // then every block after it.
                 const size_t hash = comment ? 0 : block.find('#');
-                if (hash == std::string::npos) continue;
+                if (hash == std::string::npos) {
+                    // OpenMesh reads a position index with >> into an int: "1.5" or "2e1" is read
+                    // as its leading integer, another vertex than the file names. (Words that do
+                    // not start like a number it skips, as before: the face counts say so.)
+                    const std::string position = block.substr(0, block.find('/'));
+                    const size_t first = position[0] == '+' || position[0] == '-' ? 1 : 0;
+                    if (position.size() > first && std::isdigit(static_cast<unsigned char>(position[first])) &&
+                        position.find_first_not_of("0123456789", first) != std::string::npos) {
+                        error = "OBJ line " + std::to_string(number) + ": face vertex '" + printable(quote(block)) +
+                                "' is not an integer index (the reader would take its leading digits, another "
+                                "vertex)";
+                        return false;
+                    }
+                    continue;
+                }
                 const size_t digit = block[0] == '+' || block[0] == '-' ? 1 : 0;
                 const bool integer = (comment || hash == 0) && block.size() > digit &&
                                      std::isdigit(static_cast<unsigned char>(block[digit]));

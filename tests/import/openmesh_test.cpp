@@ -294,6 +294,13 @@ TEST(OpenMesh, DeclaredFaceCounts) {
          "error: OBJ line 6: the comment after the face's vertices holds '2', which OpenMesh's reader would read as "
          "face data (it does not stop at '#'; the face would change): put the comment on a line of its own"},
         {"negative.obj", v + "f -5 -4 -3\nf -4 -2 -3\n", "ok 2"},
+        // A position index that is not an integer: OpenMesh took its leading digits.
+        {"float_index.obj", v + "f 1.5 2 3\n",
+         "error: OBJ line 6: face vertex '1.5' is not an integer index (the reader would take its leading digits, "
+         "another vertex)"},
+        {"exp_index.obj", v + "f 1 2/1 3e0/1/1\n",
+         "error: OBJ line 6: face vertex '3e0/1/1' is not an integer index (the reader would take its leading digits, "
+         "another vertex)"},
         {"eof_blank.obj", v + "f 1 2 3\n\n\n  \n\t\n", "ok 1"},
         {"no_newline.obj", v + "f 1 2 3\nf 2 4 3", "ok 2"},
         {"vt_vn.obj", v + "vt 0 0\nvn 0 0 1\nf 1/1/1 2//1 3/1\n", "ok 1"},
