@@ -457,6 +457,43 @@ TEST(NodeIntersect, MetaDecodeSetsPaperBits) {
     }
 }
 
+// segment_reach rounds outwards: the reach e lies at or beyond the exact o + d T (T =
+// min(tmax, 2^128)) in the direction of d, and within a few float steps of it. Inputs where
+// o + d T is exact in long double (o = 0, or exponents of o and d T within 16 of each other;
+// d T is exact in double), so the comparison is exact. A reach rounded to nearest fails it.
+TEST(NodeIntersect, SegmentReachRoundsOutwards) {
+    std::mt19937_64 rng(2027);
+    std::uniform_real_distribution<float> m(0.5f, 1.0f);
+    uint64_t checked = 0, inward = 0, loose = 0;
+    for (int i = 0; i < 200000; ++i) {
+        const float sd = (rng() & 1) ? 1.0f : -1.0f, so = (rng() & 1) ? 1.0f : -1.0f;
+        const bool huge = rng() % 4 == 0;
+        const float d = sd * std::ldexp(m(rng), huge ? 64 + int(rng() % 63) : -149 + int(rng() % 84));
+        const float tmax = rng() % 3 == 0 ? INFINITY : std::ldexp(m(rng), int(rng() % 260) - 130);
+        if (d == 0.0f || !reach_needs_double(d)) continue;
+        const long double T = tmax > FLT_MAX ? std::ldexp(1.0L, 128) : (long double)tmax;
+        const long double p = (long double)d * T;  // exact
+        if (!std::isfinite((double)p) || p == 0) continue;
+        int ep = 0;
+        std::frexp((double)p, &ep);
+        const float o = rng() % 4 == 0 ? 0.0f : so * std::ldexp(m(rng), ep + int(rng() % 33) - 16);
+        if (!std::isfinite(o)) continue;  // not a traceable ray
+        const long double exact = (long double)o + p;  // exact: the bits span at most 16 + 48 = 64
+        const float e = segment_reach(o, d, tmax);
+        ++checked;
+        const bool out = d > 0 ? (long double)e >= exact : (long double)e <= exact;
+        inward += !out;
+        if (std::isfinite(e)) {
+            const float back = d > 0 ? std::nextafter(std::nextafter(e, -INFINITY), -INFINITY)
+                                     : std::nextafter(std::nextafter(e, INFINITY), INFINITY);
+            loose += d > 0 ? (long double)back > exact : (long double)back < exact;  // more than 2 steps out
+        }
+    }
+    EXPECT_GT(checked, 100000u);
+    EXPECT_EQ(inward, 0u);
+    EXPECT_EQ(loose, 0u);
+}
+
 TEST(NodeIntersect, FlatAndZeroDirection) {
     // A flat child (qlo == qhi on z) hit by a ray in its plane (dz = +0 and -0), and
     // a ray crossing it (tnear == tfar): both must hit (<=, not <).
