@@ -13,7 +13,8 @@
 // at every bin plane it spans, 80% of the build before this was tuned): all
 // per-edge quantities that do not depend on the plane (differences, error
 // bounds, which edges can cross) are computed once per triangle and axis, and
-// outward rounding uses float bit arithmetic instead of libm's nextafterf.
+// outward rounding uses float bit arithmetic instead of libm's nextafterf
+// (float_round.h).
 // The arithmetic on every value is the same expression as before, so results
 // are bitwise unchanged.
 #include <algorithm>
@@ -26,17 +27,9 @@
 namespace cwbvh::compiler {
 namespace {
 
-// Round a double down / up to a float. Direction matters: a lower bound must
-// never end up above the exact value and an upper bound never below it, else a
-// ray could miss the part of the triangle that lies in the gap.
-inline float round_down(double x) {
-    const float f = static_cast<float>(x);  // round to nearest
-    return static_cast<double>(f) > x ? next_float_down(f) : f;
-}
-inline float round_up(double x) {
-    const float f = static_cast<float>(x);
-    return static_cast<double>(f) < x ? next_float_up(f) : f;
-}
+// Rounding a double bound to float: float_round_down for a lower bound, float_round_up
+// for an upper one (cwbvh/format/float_round.h), never to nearest: a lower bound above
+// the exact value (or an upper one below it) leaves a gap a ray can pass through.
 
 struct DBox {
     double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL};
@@ -117,8 +110,8 @@ Aabb finish(const DBox& part, int axis, float slab_lo, float slab_hi, const Aabb
     if (!part.any) return Aabb{};
     Aabb out;
     for (int j = 0; j < 3; ++j) {
-        out.lo[j] = round_down(part.lo[j]);  // outward: down for the lower bound
-        out.hi[j] = round_up(part.hi[j]);    // outward: up for the upper bound
+        out.lo[j] = float_round_down(part.lo[j]);  // outward: down for the lower bound
+        out.hi[j] = float_round_up(part.hi[j]);    // outward: up for the upper bound
     }
     // Split axis: the slab planes are floats, so clamping is exact.
     if (out.lo[axis] < slab_lo) out.lo[axis] = slab_lo;

@@ -8,6 +8,8 @@
 #include <cstdio>
 #include <string>
 
+#include "cwbvh/format/float_round.h"
+
 namespace cwbvh {
 namespace {
 
@@ -26,24 +28,6 @@ double inf_norm(const double a[3][4]) {
 }
 
 constexpr double kFloatMax = 3.4028234663852886e38;  // FLT_MAX
-
-/// The largest float <= x (the conversion of a double outside the float range is
-/// undefined behaviour in C++, so those are handled first).
-float round_down(double x) {
-    if (x > kFloatMax) return float(kFloatMax);
-    if (!(x >= -kFloatMax)) return -INFINITY;  // also NaN: never a valid bound
-    float f = static_cast<float>(x);  // nearest; may lie above x
-    if (double(f) > x) f = std::nextafter(f, -INFINITY);
-    return f;
-}
-/// The smallest float >= x.
-float round_up(double x) {
-    if (x < -kFloatMax) return -float(kFloatMax);
-    if (!(x <= kFloatMax)) return INFINITY;
-    float f = static_cast<float>(x);
-    if (double(f) < x) f = std::nextafter(f, INFINITY);
-    return f;
-}
 
 std::string num(double v) {
     char b[40];
@@ -142,8 +126,8 @@ void transform_box(const float m[3][4], const float lo[3], const float hi[3], fl
     // Outward to float: lo rounds down, hi rounds up (a box rounded to nearest could cut
     // off a corner, and a ray grazing that corner would miss the instance).
     for (int r = 0; r < 3; ++r) {
-        out_lo[r] = round_down(wlo[r]);
-        out_hi[r] = round_up(whi[r]);
+        out_lo[r] = float_round_down(wlo[r]);
+        out_hi[r] = float_round_up(whi[r]);
     }
 }
 
@@ -199,8 +183,8 @@ Expected<InstanceRecord> make_instance(const float object_to_world[3][4], const 
     const double pad = cond * 0x1p-21 * (box_mag + t_mag);
     for (int a = 0; a < 3; ++a) {
         const double lo = double(inst.world_lo[a]) - pad, hi = double(inst.world_hi[a]) + pad;
-        inst.world_lo[a] = round_down(lo);  // outward; -inf / +inf beyond float (refused below)
-        inst.world_hi[a] = round_up(hi);
+        inst.world_lo[a] = float_round_down(lo);  // outward; -inf / +inf beyond float (refused below)
+        inst.world_hi[a] = float_round_up(hi);
         if (!std::isfinite(inst.world_lo[a]) || !std::isfinite(inst.world_hi[a]))
             return bad(rule::kInstWorldBox, "the world box of the mesh overflows float");
     }

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "cwbvh/format/hex.h"
+#include "cwbvh/kernels/axis_range.h"
 #include "cwbvh/kernels/fast_node_pairs.h"
 #include "cwbvh/kernels/fp16.h"
 #include "cwbvh/kernels/node_intersect_fast.h"
@@ -20,10 +21,13 @@ namespace {
 struct Fp16Case {
     uint32_t a, b, c;  // half pairs
     float x, y, z;
+    double w;          // float_round_down / _up (format/float_round.h)
+    float o, d, t;     // segment_reach (axis_range.h): origin, direction, tmax >= 0
 };
 struct Fp16Out {
     uint32_t fma, min, le, vmax, vmin, pack, rd, ru;
     float fma_rd, fma_ru, sub_rd, add_ru;
+    float w_down, w_up, reach;
 };
 
 CWBVH_HD Fp16Out run_case(const Fp16Case& k) {
@@ -42,6 +46,9 @@ CWBVH_HD Fp16Out run_case(const Fp16Case& k) {
     o.fma_ru = fma_ru(k.x, k.y, k.z);
     o.sub_rd = sub_rd(k.x, k.z);
     o.add_ru = add_ru(k.y, k.z);
+    o.w_down = float_round_down(k.w);
+    o.w_up = float_round_up(k.w);
+    o.reach = segment_reach(k.o, k.d, k.t);
     return o;
 }
 
@@ -91,10 +98,32 @@ float any_float(std::mt19937_64& g) {
     }
 }
 
+// Any double: every exponent from below the float subnormals to beyond FLT_MAX, exact
+// floats (no rounding), +-0, +-inf and NaN now and then.
+double any_double(std::mt19937_64& g) {
+    const uint64_t bits = g();
+    switch (g() % 8) {
+        case 0: return double(bits_to_float(uint32_t(bits)));  // a float (or a float NaN / inf)
+        case 1: return (bits & 1) ? -0.0 : 0.0;
+        default: {
+            const uint64_t e = 1023u - 160u + g() % 330u;  // 2^-160 .. 2^169
+            double x;
+            const uint64_t u = (bits & 0x800FFFFFFFFFFFFFull) | (e << 52);
+            std::memcpy(&x, &u, sizeof x);
+            return x;
+        }
+    }
+}
+
 // One line per differing result of a case: operation(operands) device D host H, in bits.
 void report_fp16(const Fp16Case& k, const Fp16Out& dev, const Fp16Out& host, std::vector<std::string>& lines) {
     const std::string a = hex32(k.a), b = hex32(k.b), c = hex32(k.c);
     const std::string x = hex32(float_to_bits(k.x)), y = hex32(float_to_bits(k.y)), z = hex32(float_to_bits(k.z));
+    uint64_t wb;
+    std::memcpy(&wb, &k.w, sizeof wb);
+    const std::string w = hex64(wb);
+    const std::string reach_args = hex32(float_to_bits(k.o)) + ", " + hex32(float_to_bits(k.d)) + ", " +
+                                   hex32(float_to_bits(k.t));
     const struct {
         const char* op;
         std::string args;
@@ -112,6 +141,9 @@ void report_fp16(const Fp16Case& k, const Fp16Out& dev, const Fp16Out& host, std
         {"fma_ru", x + ", " + y + ", " + z, float_to_bits(dev.fma_ru), float_to_bits(host.fma_ru)},
         {"sub_rd", x + ", " + z, float_to_bits(dev.sub_rd), float_to_bits(host.sub_rd)},
         {"add_ru", y + ", " + z, float_to_bits(dev.add_ru), float_to_bits(host.add_ru)},
+        {"float_round_down", w, float_to_bits(dev.w_down), float_to_bits(host.w_down)},
+        {"float_round_up", w, float_to_bits(dev.w_up), float_to_bits(host.w_up)},
+        {"segment_reach", reach_args, float_to_bits(dev.reach), float_to_bits(host.reach)},
     };
     for (const auto& r : rows)
         if (r.d != r.h && lines.size() < FastNodeSelfCheck::kReported)
@@ -140,6 +172,10 @@ FastNodeSelfCheck run_fast_node_selfcheck(const CwbvhNode* nodes, size_t node_co
         k.x = any_float(g);
         k.y = any_float(g);
         k.z = g() % 4 == 0 ? -k.x * k.y : any_float(g);  // cancellation
+        k.w = any_double(g);
+        k.o = any_float(g);
+        k.d = any_float(g);  // a quarter subnormal: segment_reach's double path
+        k.t = g() % 4 == 0 ? kInfinity : abs_f(any_float(g));
     }
     std::vector<Fp16Out> out(in.size());
     if (!in.empty()) {

@@ -9,11 +9,11 @@
 #pragma once
 
 #include <array>
-#include <bit>
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include "cwbvh/format/float_round.h"
 #include "cwbvh/format/status.h"
 #include "cwbvh/compiler/model.h"
 
@@ -86,23 +86,7 @@ double sah_cost_binary(const BinaryBvh& bvh, float c_node = 1.0f, float c_prim =
 // Helpers shared by both builders and used by tests.
 // ---------------------------------------------------------------------------
 
-/// The next float above / below f (IEEE 754 nextUp / nextDown), by float bit
-/// arithmetic; equal to std::nextafter(f, +-inf) (tested against it), without
-/// the libm call. +-0 -> +-smallest subnormal (sign of the direction),
-/// +inf stays +inf (next_float_up) and goes to FLT_MAX (next_float_down),
-/// -inf likewise mirrored, NaN stays NaN.
-inline float next_float_up(float f) {
-    if (!(f == f) || f == __builtin_huge_valf()) return f;  // NaN, +inf
-    if (f == 0.0f) return std::bit_cast<float>(uint32_t{1});  // +-0 -> +denorm_min
-    const uint32_t u = std::bit_cast<uint32_t>(f);
-    return std::bit_cast<float>(f > 0.0f ? u + 1 : u - 1);  // magnitude up / down
-}
-inline float next_float_down(float f) {
-    if (!(f == f) || f == -__builtin_huge_valf()) return f;  // NaN, -inf
-    if (f == 0.0f) return std::bit_cast<float>(uint32_t{0x80000001u});  // -> -denorm_min
-    const uint32_t u = std::bit_cast<uint32_t>(f);
-    return std::bit_cast<float>(f > 0.0f ? u - 1 : u + 1);
-}
+// next_float_up / next_float_down: cwbvh/format/float_round.h (included above).
 
 /// Conservative float box of the part of triangle `tri` with
 /// slab_lo <= x[axis] <= slab_hi (either bound may be +-inf), intersected with

@@ -1,5 +1,5 @@
 // Hexadecimal text for messages and reports (host only): validator errors, ray file
-// errors, the GPU self-check's differing cases. One home for the three formats.
+// errors, the GPU self-check's differing cases. One home for the four formats.
 #pragma once
 
 #include <cstddef>
@@ -20,6 +20,13 @@ inline std::string hex8(uint8_t v) {
 inline std::string hex32(uint32_t v) {
     char b[16];
     std::snprintf(b, sizeof b, "0x%08x", unsigned(v));
+    return b;
+}
+
+/// "0x%016llx".
+inline std::string hex64(uint64_t v) {
+    char b[24];
+    std::snprintf(b, sizeof b, "0x%016llx", static_cast<unsigned long long>(v));
     return b;
 }
 

@@ -24,8 +24,8 @@
 // (24 x 24 significand bits, exponents 2^-298 .. 2^256; T = 2^128 is a power of two), o + d T rounds once (within
 // 2^-53 |x| of the exact x; x = 0 only when the exact sum is 0), the end moves outwards by
 // 2^-50 |x| and that sum rounds once more (net outward by more than 2^-53 |x|), then the
-// conversion to float rounds outwards (the next float up or down where it rounded
-// inwards; f = +-FLT_MAX steps to +-inf, f = -+inf back to -+FLT_MAX).
+// conversion to float rounds outwards (float_round_up / float_round_down,
+// cwbvh/format/float_round.h: one directed conversion on the device).
 // For 2^-64 <= |d| <= 2^64 no float scene is out of the slab's range because of d
 // (an axis goes unbounded there only for coordinates beyond 2^120): the reach is then
 // taken as +-inf, one select instead of the double arithmetic.
@@ -33,6 +33,7 @@
 
 #include <cstdint>
 
+#include "cwbvh/format/float_round.h"
 #include "cwbvh/format/hostdevice.h"
 #include "cwbvh/kernels/fp.h"
 
@@ -61,13 +62,7 @@ CWBVH_HD CWBVH_INLINE float segment_reach(float o, float d, float tmax) {
     constexpr double kWiden = 8.8817841970012523e-16;  // 2^-50
     const bool up = d > 0.0f;  // the reach lies above o: round up, else down
     const double w = up ? x + abs_d(x) * kWiden : x - abs_d(x) * kWiden;
-    float f = float(w);  // to nearest (or to +-inf beyond the float range)
-    if (up ? double(f) < w : double(f) > w) {  // rounded inwards: one float outwards
-        const uint32_t b = float_to_bits(f);
-        if ((b & 0x7FFFFFFFu) == 0) f = up ? bits_to_float(1u) : bits_to_float(0x80000001u);  // least subnormal
-        else f = bits_to_float((f > 0.0f) == up ? b + 1u : b - 1u);  // away from 0, or towards it
-    }
-    return f;
+    return up ? float_round_up(w) : float_round_down(w);  // outwards
 }
 
 /// segment_reach for the three axes of a ray. The double path, rare, runs in one rolled

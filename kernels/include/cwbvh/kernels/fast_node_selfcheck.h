@@ -1,7 +1,9 @@
-// Device self-check of the fast node test (node_intersect_fast.h) and of fp16.h: on the
+// Device self-check of the fast node test (node_intersect_fast.h), of fp16.h and of the
+// directed double-to-float conversions (format/float_round.h, axis_range.h's reach): on the
 // GPU each must give the bits of its host emulation, which is what the warp model, the
 // kernel emulation and the node test's contract test (tests/traverse) run. Generated
-// cases: operand bit patterns for the half and directed-rounding operations, and
+// cases: operand bit patterns for the half and directed-rounding operations (doubles of
+// every exponent for the conversions), and
 // (node, ray) pairs from a scene's own nodes with rays that take the fast test.
 // cwbvh_gpu_check runs it on every GPU check (a mismatch fails the check), the gpu
 // test area when a device is present. CUDA builds only (cwbvh_cuda).

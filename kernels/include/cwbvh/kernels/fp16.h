@@ -18,6 +18,7 @@
 
 #include <cstdint>
 
+#include "cwbvh/format/float_round.h"
 #include "cwbvh/kernels/fp.h"
 
 #if defined(__CUDA_ARCH__)
@@ -59,11 +60,8 @@ inline double fma_round_to_odd(double a, double b, double c) {
 /// x (a double holding a float result, or round-to-odd of one) rounded to float:
 /// mode -1 down, +1 up.
 inline float float_directed(double x, int mode) {
-    float f = float(x);  // round to nearest
-    if (std::isnan(x)) return f;
-    if (mode < 0 && double(f) > x) f = std::nextafter(f, -kInfinity);
-    if (mode > 0 && double(f) < x) f = std::nextafter(f, kInfinity);
-    return f;
+    if (std::isnan(x)) return float(x);  // the instruction's NaN (float_round_* give +-inf)
+    return mode < 0 ? float_round_down(x) : mode > 0 ? float_round_up(x) : float(x);
 }
 
 /// x rounded to binary16 bits: mode 0 to nearest even, -1 down, +1 up.
