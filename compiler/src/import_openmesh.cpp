@@ -5,7 +5,8 @@
 //
 // OpenMesh's ImporterT silently drops faces with repeated or invalid vertex
 // indices (printing to omerr()) and re-adds non-manifold faces with duplicated
-// vertices. We capture omerr()/omlog()/omout() during the read, and compare the face
+// vertices. We capture omerr()/omlog()/omout() (and std::cerr / std::clog, which some of
+// its readers write to directly) during the read, and compare the face
 // count read with the count the file announces (PLY/OFF header, binary STL
 // header) or that a cheap scan finds (OBJ `f` lines, ASCII STL `facet`
 // words), reporting any difference as a warning. Dropped faces are not in
@@ -26,6 +27,7 @@
 #include <cstdint>
 #include <cstring>
 #include <fstream>
+#include <iostream>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -53,12 +55,21 @@ using Mesh = OpenMesh::PolyMesh_ArrayKernelT<MeshTraits>;
 /// (never back to std::cerr; nothing else in cwbvhc uses OpenMesh, see
 /// CONTRIBUTING's adapter rule) and each read starts by clearing it. The
 /// import is single-threaded.
+///
+/// omlog() is connected to std::clog (not std::cerr), and enabled in Debian's build (no
+/// NDEBUG): its lines ("Unsupported keyword : foo" from the PLY header parser) reached
+/// stderr raw as well as the buffer, so std::clog is disconnected too. Some readers write
+/// to std::cerr directly ("Error in file format (colorType = 7)" in OFFReader.cc, the PLY
+/// reader's "unsupported type" ones): std::cerr's and std::clog's buffers are pointed at
+/// the same buffer while this object lives (one read_mesh), and restored by its destructor,
+/// also when the read throws. cwbvhc's own messages go through C stdio (stderr), not these.
 class OmCapture {
 public:
-    OmCapture() {
+    OmCapture() : cerr_(std::cerr.rdbuf()), clog_(std::clog.rdbuf()) {
         static const bool redirected = [] {
             for (OpenMesh::mostream* s : {&omerr(), &omlog(), &omout()}) {
                 s->disconnect(std::cerr);
+                s->disconnect(std::clog);
                 s->disconnect(std::cout);
                 s->connect(buffer());
             }
@@ -66,7 +77,15 @@ public:
         }();
         (void)redirected;
         buffer().str(std::string());
+        std::cerr.rdbuf(buffer().rdbuf());
+        std::clog.rdbuf(buffer().rdbuf());
     }
+    ~OmCapture() {
+        std::cerr.rdbuf(cerr_);
+        std::clog.rdbuf(clog_);
+    }
+    OmCapture(const OmCapture&) = delete;
+    OmCapture& operator=(const OmCapture&) = delete;
     std::vector<std::string> error_lines() {
         for (OpenMesh::mostream* s : {&omerr(), &omlog(), &omout()}) s->flush();
         std::vector<std::string> lines;
@@ -79,6 +98,8 @@ public:
     }
 
 private:
+    std::streambuf* const cerr_;
+    std::streambuf* const clog_;
     static std::ostringstream& buffer() {
         static std::ostringstream* text = new std::ostringstream;  // outlives OpenMesh's statics
         return *text;

@@ -1,6 +1,7 @@
 // OBJ / PLY / OFF / STL through the OpenMesh adapter, plus cleaning rules.
 #include <cmath>
 #include <cstring>
+#include <iostream>
 #include <limits>
 
 #include "import/import_test_util.h"
@@ -510,6 +511,42 @@ TEST(OpenMesh, PlyFormatIsTheOneOpenMeshReads) {
     r = import_files({dir.write("one.ply", "ply\nformat ascii 1.0\n" + rest)});
     ASSERT_FALSE(r.ok);
     EXPECT_NE(r.error.find("one.ply: PLY file is truncated or unparsable at face 1 of 2"), std::string::npos) << r.error;
+}
+
+// OpenMesh's messages become our warnings ("OpenMesh: ...") and never reach stderr raw:
+// omlog() writes to std::clog (the PLY header's "Unsupported keyword : foo"), the OFF reader
+// to std::cerr directly (a COFF vertex with 7 colour values); omerr() (an OBJ's unknown
+// material) was captured before. std::cerr is ours again after the read.
+TEST(OpenMesh, ReaderMessagesAreWarningsNotRawStderr) {
+    TempDir dir;
+    struct Case {
+        const char* name;
+        std::string text, warning;
+    };
+    const Case cases[] = {
+        {"keyword.ply",
+         "ply\nformat ascii 1.0\nfoo\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+         "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+         "OpenMesh: Unsupported keyword : foo"},
+        {"colour.off", "COFF\n3 1 0\n0 0 0 1 2 3 4 5 6 7\n1 0 0 255 0 0\n0 1 0 255 0 0\n3 0 1 2\n",
+         "OpenMesh: Error in file format (colorType = 7)"},
+        {"material.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl x\nf 1 2 3\n",
+         "OpenMesh: Warning! Material 'x' not defined in material file."},
+    };
+    for (const Case& c : cases) {
+        const std::string path = dir.write(c.name, c.text);
+        testing::internal::CaptureStderr();
+        const auto r = import_files({path});
+        std::cerr << "ours\n";
+        std::clog << "ours too\n";
+        const std::string raw = testing::internal::GetCapturedStderr();
+        EXPECT_EQ(raw, "ours\nours too\n") << c.name;
+        ASSERT_TRUE(r.ok) << c.name << ": " << r.error;
+        EXPECT_EQ(r.scene.triangle_count(), 1u) << c.name;
+        bool warned = false;
+        for (const std::string& w : r.warnings) warned |= w == path + ": " + c.warning;
+        EXPECT_TRUE(warned) << c.name << ": " << ::testing::PrintToString(r.warnings);
+    }
 }
 
 TEST(Import, MergeSetsSourceInputAndNames) {
