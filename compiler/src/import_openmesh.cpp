@@ -12,13 +12,12 @@
 // words), reporting any difference as a warning. Dropped faces are not in
 // Scene::input_triangles (they never reach us).
 //
-// Each OBJ, PLY and STL file is scanned once by our own code before OpenMesh reads it:
+// Each OBJ, PLY, OFF and STL file is scanned once by our own code before OpenMesh reads it:
 // the pre-check that refuses what the reader would misread (check_obj, check_ply,
-// check_stl) also takes the counts of that warning (DeclaredCounts), each by its own
-// rule on the same lines or words (the count rules are not the pre-checks' rules and
+// check_off, check_stl) also takes the counts of that warning (DeclaredCounts), each by its
+// own rule on the same lines or words (the count rules are not the pre-checks' rules and
 // must not become them: tests/import/openmesh_test.cpp, DeclaredFaceCounts). A PLY
-// header is read twice (OpenMesh's token replay, then our lines); an OFF header's
-// counts are read again after the read (a few words).
+// header is read twice (OpenMesh's token replay, then our lines).
 #include <strings.h>
 
 #include <algorithm>
@@ -135,25 +134,6 @@ void count_obj_element(const std::string& line, DeclaredCounts& declared) {
     if (c == 'f') ++declared.faces;
     else if (c == 'l') ++declared.lines;
     else if (c == 'p') ++declared.points;
-}
-
-/// The faces an OFF header declares, or -1: "OFF" then "nv nf ne" (comments start with
-/// '#'); ASCII only. Its own read of the first words, after OpenMesh's: check_off reads
-/// the counts as OpenMesh does (from the line after the OFF line), this rule from the words
-/// after the OFF word ("OFF 4 2 0" on one line: 2 here, 0 faces read, and a warning).
-int64_t off_declared_faces(const std::string& path) {
-    std::ifstream f(path, std::ios::binary);
-    if (!f) return -1;
-    std::string line, word;
-    while (f >> word) {
-        if (word[0] == '#') { std::getline(f, line); continue; }
-        if (word.find("OFF") != std::string::npos) {
-            long long nv = -1, nf = -1;
-            if (f >> nv >> nf) return nf;
-        }
-        return -1;
-    }
-    return -1;
 }
 
 /// `t` for an error message: a control character (a NUL would end the printed line) as '?'.
@@ -679,10 +659,28 @@ bool check_stl(const std::string& path, std::string& error, DeclaredCounts& decl
 /// count is read as an uninitialised value. So replay its reads here (same
 /// stream operations, same order, from its OFFReader.cc) and reject the file
 /// where they would fail: every element the header announces must be there.
-bool check_off(const std::string& path, std::string& error) {
+/// Its header rules, where it reads wrong or refuses without saying why (each refused
+/// here, naming the line):
+///  - line 1 must be [ST][C][N]OFF [BINARY], from its first byte (no comment or blank
+///    before it); a 4 or n flag (4OFF, nOFF: vertices of other than 3 coordinates) it refuses.
+///  - ASCII: it ignores the rest of line 1 and reads the counts with >> from the line after,
+///    so "OFF 4 2 0" on one line had it take the first vertex for the counts ("no
+///    triangles", or other counts and wrong geometry); a first word after OFF that starts
+///    like a number is refused. Blank lines before the counts it skips; a comment it does
+///    not (it read no counts), nor text after the three counts on their line, which it read
+///    as the first vertex ("4 2 0 7" made vertex 0 (7, 0, 0); "4 2" took the edge count
+///    from the first vertex and shifted every coordinate).
+/// declared.faces: the header's face count (ASCII and binary), which OpenMesh reads.
+bool check_off(const std::string& path, std::string& error, DeclaredCounts& declared) {
     std::ifstream f;
     uint64_t size = 0;
     if (!open_for_check(path, f, size, error)) return false;
+    declared = DeclaredCounts{};
+    auto quote = [](const std::string& t) {
+        const size_t b = t.find_first_not_of(" \t\r\n"), e = t.find_last_not_of(" \t\r\n");
+        const std::string s = b == std::string::npos ? std::string() : t.substr(b, e - b + 1);
+        return "'" + printable(s.size() > 48 ? s.substr(0, 48) + "..." : s) + "'";
+    };
     // Header flags as in _OFFReader_::can_u_read: [ST][C][N][4][n]OFF [BINARY].
     std::string first;
     std::getline(f, first);
@@ -692,10 +690,33 @@ bool check_off(const std::string& path, std::string& error) {
     if (left > 1 && p[0] == 'S' && p[1] == 'T') { texcoord = true; p += 2; left -= 2; }
     if (left > 0 && p[0] == 'C') { color = true; ++p; --left; }
     if (left > 0 && p[0] == 'N') { normal = true; ++p; --left; }
-    if (left > 0 && (p[0] == '4' || p[0] == 'n')) return true;  // OpenMesh refuses these
-    if (left < 3 || std::strncmp(p, "OFF", 3) != 0) return true;  // not OFF: OpenMesh refuses
+    if (left > 0 && (p[0] == '4' || p[0] == 'n')) {
+        error = "OFF line 1: the header " + quote(first) + " announces vertices of 4 or n coordinates (4OFF, nOFF), "
+                "which OpenMesh's reader does not read (3 coordinates only)";
+        return false;
+    }
+    if (left < 3 || std::strncmp(p, "OFF", 3) != 0) {
+        error = size == 0 ? std::string("OFF file is empty")
+                          : "OFF line 1: " + quote(first) + " is not an OFF header ([ST][C][N]OFF, at the very start of "
+                            "the file: OpenMesh's reader skips no comment or blank before it)";
+        return false;
+    }
     left = left >= 4 ? left - 4 : 0;
     const bool binary = left >= 6 && std::strncmp(p + 4, "BINARY", 6) == 0;
+    if (!binary) {
+        const std::string after = first.substr(size_t(p + 3 - first.c_str()));
+        const size_t w = after.find_first_not_of(" \t\r\v\f");
+        const size_t digit = w != std::string::npos && (after[w] == '+' || after[w] == '-') ? w + 1 : w;
+        if (digit < after.size() &&
+            (std::isdigit(static_cast<unsigned char>(after[digit])) ||
+             (after[digit] == '.' && digit + 1 < after.size() &&
+              std::isdigit(static_cast<unsigned char>(after[digit + 1]))))) {
+            error = "OFF line 1: the counts are on the header line (" + quote(first) + "), but OpenMesh's reader "
+                    "ignores the rest of that line and reads the counts from the next one: put " + quote(after) +
+                    " on a line of its own";
+            return false;
+        }
+    }
 
     auto short_file = [&](const char* what, uint64_t i, uint64_t n) {
         error = std::string("OFF file is truncated or unparsable at ") + what + " " +
@@ -719,6 +740,7 @@ bool check_off(const std::string& path, std::string& error) {
                     std::to_string(nf) + " faces in a file of " + std::to_string(size) + " bytes";
             return false;
         }
+        declared.faces = nf;
         const std::streamoff record = 12 + (normal ? 12 : 0) + (color ? 12 : 0) + (texcoord ? 8 : 0);
         const uint64_t body = size - std::min<uint64_t>(size, uint64_t(f.tellg()));
         if (uint64_t(nv) * uint64_t(record) > body) return short_file("vertex", body / record, nv);
@@ -736,16 +758,58 @@ bool check_off(const std::string& path, std::string& error) {
         }
         return true;
     }
-    // ASCII (_OFFReader_::read_ascii).
-    if (!(f >> nv >> nf >> ne)) {
-        error = "OFF header has missing or invalid vertex/face/edge counts";
+    // ASCII (_OFFReader_::read_ascii). The counts: >> from the line after the header, over
+    // blank lines. `number`: the line they start on, at `start`.
+    const char* blanks = " \t\r\v\f";
+    std::string line;
+    uint64_t number = 1;
+    std::streamoff start = f.tellg();
+    bool found = false;
+    while (!found && std::getline(f, line)) {
+        ++number;
+        found = line.find_first_not_of(blanks) != std::string::npos;
+        if (!found) start = f.tellg();
+    }
+    if (!found) {
+        error = "OFF header has missing or invalid vertex/face/edge counts (the file ends at line " +
+                std::to_string(number) + ")";
         return false;
+    }
+    if (line[line.find_first_not_of(blanks)] == '#') {
+        error = "OFF line " + std::to_string(number) + ": a comment (" + quote(line) + ") where the vertex/face/edge "
+                "counts belong: OpenMesh's reader reads the counts from the first words after the header line and "
+                "skips no comment";
+        return false;
+    }
+    f.clear();
+    f.seekg(start);
+    if (!(f >> nv >> nf >> ne)) {
+        error = "OFF header has missing or invalid vertex/face/edge counts (line " + std::to_string(number) + ")";
+        return false;
+    }
+    // The rest of the line that ends the counts: OpenMesh reads whatever is there as the first vertex.
+    if (!f.eof()) {
+        const std::streamoff counts_end = f.tellg();
+        std::string tail;
+        std::getline(f, tail);
+        if (tail.find_first_not_of(blanks) != std::string::npos) {
+            std::string counts(size_t(counts_end - start), '\0');
+            f.clear();
+            f.seekg(start);
+            f.read(&counts[0], std::streamsize(counts.size()));
+            number += uint64_t(std::count(counts.begin(), counts.end(), '\n'));
+            error = "OFF line " + std::to_string(number) + ": " + quote(tail) + " after the vertex/face/edge counts " +
+                    std::to_string(nv) + " " + std::to_string(nf) + " " + std::to_string(ne) + ": OpenMesh's reader "
+                    "would read it as the first vertex (the counts must be three numbers alone on their line)";
+            return false;
+        }
     }
     if (nv > size || nf > size) {
         error = "OFF header declares " + std::to_string(nv) + " vertices and " +
                 std::to_string(nf) + " faces in a file of " + std::to_string(size) + " bytes";
         return false;
     }
+    declared.faces = nf;
     float x = 0;
     std::string rest;
     for (unsigned int i = 0; i < nv; ++i) {
@@ -805,7 +869,7 @@ Result import_openmesh(const std::string& path, const ImportOptions& options, Ra
     if (ext == "ply" && !check_ply(path, error, declared)) return bad(error);
     if (ext == "obj" && !check_obj(path, error, declared)) return bad(error);
     if (ext == "stl" && !check_stl(path, error, declared)) return bad(error);
-    if (ext == "off" && !check_off(path, error)) return bad(error);
+    if (ext == "off" && !check_off(path, error, declared)) return bad(error);
     Mesh mesh;
     bool ok = false;
     std::vector<std::string> om_lines;
@@ -831,7 +895,6 @@ Result import_openmesh(const std::string& path, const ImportOptions& options, Ra
         warnings.push_back("OpenMesh: ... " + std::to_string(om_lines.size() - kMaxReaderLines) +
                            " more messages");
 
-    if (ext == "off") declared.faces = off_declared_faces(path);
     if (declared.lines > 0) out.skipped_primitives["lines"] = declared.lines;
     if (declared.points > 0) out.skipped_primitives["points"] = declared.points;
     const int64_t expected = declared.faces;

@@ -549,6 +549,76 @@ TEST(OpenMesh, ReaderMessagesAreWarningsNotRawStderr) {
     }
 }
 
+// OpenMesh's OFF reader takes line 1 for the header ([ST][C][N]OFF, nothing before it) and
+// ignores the rest of that line, then reads the counts with >> from the lines after it (over
+// blank lines, not over comments) and the first vertex right after the third count. "OFF 4 2 0"
+// on one line had it read the first vertex as the counts ("no triangles: the reader rejected
+// all 2 faces"), "4 2 0 7" made the first vertex (7, 0, 0) with no message. Each layout it
+// misreads is refused naming the line; those it reads right load the file's two triangles.
+TEST(OpenMesh, OffHeaderLayoutsOpenMeshMisreadsAreRefused) {
+    TempDir dir;
+    const std::string body = "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n";
+    const std::string normals = "0 0 0 0 0 1\n1 0 0 0 0 1\n1 1 0 0 0 1\n0 1 0 0 0 1\n3 0 1 2\n3 0 2 3\n";
+    const std::string colours = "0 0 0 255 0 0\n1 0 0 255 0 0\n1 1 0 255 0 0\n0 1 0 255 0 0\n3 0 1 2\n3 0 2 3\n";
+    const std::string counts_on_line_1 = "OFF line 1: the counts are on the header line (";
+    struct Case {
+        const char* name;
+        std::string text, error;  // error: the message after "<path>: "; empty: accepted
+    };
+    const Case cases[] = {
+        {"counts.off", "OFF 4 2 0\n" + body,
+         counts_on_line_1 + "'OFF 4 2 0'), but OpenMesh's reader ignores the rest of that line and reads the counts "
+                            "from the next one: put '4 2 0' on a line of its own"},
+        {"glued.off", "OFF4 2 0\n" + body, counts_on_line_1 + "'OFF4 2 0'), but"},
+        {"crlf_counts.off", "OFF 4 2 0\r\n" + body, counts_on_line_1 + "'OFF 4 2 0'), but"},
+        {"coff_counts.off", "COFF 4 2 0\n" + colours, counts_on_line_1 + "'COFF 4 2 0'), but"},
+        {"noff_counts.off", "NOFF\t4 2 0\n" + normals, counts_on_line_1 + "'NOFF\t4 2 0'), but"},
+        {"four.off", "4OFF\n4 2 0\n0 0 0 1\n1 0 0 1\n1 1 0 1\n0 1 0 1\n3 0 1 2\n3 0 2 3\n",
+         "OFF line 1: the header '4OFF' announces vertices of 4 or n coordinates (4OFF, nOFF), which OpenMesh's "
+         "reader does not read (3 coordinates only)"},
+        {"four_counts.off", "4OFF 4 2 0\n" + body, "OFF line 1: the header '4OFF 4 2 0' announces vertices of 4 or n"},
+        {"n.off", "nOFF\n3\n4 2 0\n" + body, "OFF line 1: the header 'nOFF' announces vertices of 4 or n"},
+        {"comment_first.off", "# made by hand\nOFF\n4 2 0\n" + body,
+         "OFF line 1: '# made by hand' is not an OFF header ([ST][C][N]OFF, at the very start of the file: "
+         "OpenMesh's reader skips no comment or blank before it)"},
+        {"blank_first.off", "\nOFF\n4 2 0\n" + body, "OFF line 1: '' is not an OFF header"},
+        {"empty.off", "", "OFF file is empty"},
+        {"comment_counts.off", "OFF\n\n# made by hand\n4 2 0\n" + body,
+         "OFF line 3: a comment ('# made by hand') where the vertex/face/edge counts belong: OpenMesh's reader reads "
+         "the counts from the first words after the header line and skips no comment"},
+        {"counts_comment.off", "OFF\n4 2 0 # v f e\n" + body,
+         "OFF line 2: '# v f e' after the vertex/face/edge counts 4 2 0: OpenMesh's reader would read it as the first "
+         "vertex (the counts must be three numbers alone on their line)"},
+        {"four_counts_line.off", "OFF\n4 2 0 7\n" + body, "OFF line 2: '7' after the vertex/face/edge counts 4 2 0"},
+        {"two_counts.off", "OFF\n4 2\n" + body, "OFF line 3: '0 0' after the vertex/face/edge counts 4 2 0"},
+        {"no_counts.off", "OFF\n\n  \n", "OFF header has missing or invalid vertex/face/edge counts (the file ends at line 3)"},
+        // Read right: accepted.
+        {"plain.off", "OFF\n4 2 0\n" + body, ""},
+        {"blank_lines.off", "OFF\n\n \t\n4 2 0\n" + body, ""},
+        {"header_comment.off", "OFF # made by hand\n4 2 0\n" + body, ""},
+        {"header_word.off", "OFF ascii\n4 2 0\n" + body, ""},
+        {"counts_over_lines.off", "OFF\n4\n2\n0\n" + body, ""},
+        {"crlf.off", "OFF\r\n4 2 0\r\n0 0 0\r\n1 0 0\r\n1 1 0\r\n0 1 0\r\n3 0 1 2\r\n3 0 2 3\r\n", ""},
+        {"trailing_blanks.off", "OFF\n4 2 0 \t\n" + body, ""},
+        {"coff.off", "COFF\n4 2 0\n" + colours, ""},
+        {"noff.off", "NOFF\n4 2 0\n" + normals, ""},
+    };
+    for (const Case& c : cases) {
+        const std::string path = dir.write(c.name, c.text);
+        const auto r = import_files({path});
+        if (!c.error.empty()) {
+            ASSERT_FALSE(r.ok) << c.name;
+            EXPECT_EQ(r.error.rfind(path + ": " + c.error, 0), 0u) << c.name << ": " << r.error;
+            continue;
+        }
+        ASSERT_TRUE(r.ok) << c.name << ": " << r.error;
+        ASSERT_EQ(r.scene.triangle_count(), 2u) << c.name;
+        EXPECT_EQ(r.scene.triangle(0), (std::array<Vec3, 3>{Vec3{0, 0, 0}, Vec3{1, 0, 0}, Vec3{1, 1, 0}})) << c.name;
+        EXPECT_EQ(r.scene.triangle(1), (std::array<Vec3, 3>{Vec3{0, 0, 0}, Vec3{1, 1, 0}, Vec3{0, 1, 0}})) << c.name;
+        EXPECT_TRUE(r.warnings.empty()) << c.name << ": " << r.warnings.front();
+    }
+}
+
 TEST(Import, MergeSetsSourceInputAndNames) {
     TempDir dir;
     const std::string a = dir.write("a.obj", kObj), b = dir.write("b.off", kOff);
