@@ -8,16 +8,16 @@
 // vertices. We capture omerr()/omlog()/omout() (and std::cerr / std::clog, which some of
 // its readers write to directly) during the read, and compare the face
 // count read with the count the file announces (PLY/OFF header, binary STL
-// header) or that a cheap scan finds (OBJ `f` lines, ASCII STL `facet`
-// words), reporting any difference as a warning. Dropped faces are not in
+// header) or that a cheap scan finds (OBJ `f` lines, ASCII STL facets),
+// reporting any difference as a warning. Dropped faces are not in
 // Scene::input_triangles (they never reach us).
 //
 // Each OBJ, PLY, OFF and STL file is scanned once by our own code before OpenMesh reads it:
 // the pre-check that refuses what the reader would misread (check_obj, check_ply,
-// check_off, check_stl) also takes the counts of that warning (DeclaredCounts), each by its
-// own rule on the same lines or words (the count rules are not the pre-checks' rules and
-// must not become them: tests/import/openmesh_test.cpp, DeclaredFaceCounts). A PLY
-// header is read twice (OpenMesh's token replay, then our lines).
+// check_off, check_stl) also takes the counts of that warning (DeclaredCounts): the faces
+// the reader will try to add, as it splits lines and words, so a file it reads whole gives
+// no warning and one whose faces it drops does (tests/import/openmesh_test.cpp,
+// DeclaredFaceCounts). A PLY header is read twice (OpenMesh's token replay, then our lines).
 #include <strings.h>
 
 #include <algorithm>
@@ -121,21 +121,6 @@ struct DeclaredCounts {
     uint64_t lines = 0, points = 0;
 };
 
-/// One OBJ line's share of DeclaredCounts. The rule is a first-character one, NOT the
-/// keyword rule of check_obj and OpenMesh: a line counts when, after blanks and tabs,
-/// 'f', 'l' or 'p' is followed by a blank or tab. So "f\v1 2 3" and "\rf 1 2 3" are faces
-/// to OpenMesh that are not counted, and "f \r" (no vertices) is counted and dropped by
-/// the reader; the warning then says so. Kept as it is: what cwbvhc has always reported.
-void count_obj_element(const std::string& line, DeclaredCounts& declared) {
-    const size_t i = line.find_first_not_of(" \t");
-    if (i == std::string::npos || i + 1 >= line.size()) return;
-    const char c = line[i], d = line[i + 1];
-    if (d != ' ' && d != '\t') return;
-    if (c == 'f') ++declared.faces;
-    else if (c == 'l') ++declared.lines;
-    else if (c == 'p') ++declared.points;
-}
-
 /// `t` for an error message: a control character (a NUL would end the printed line) as '?'.
 std::string printable(std::string t) {
     for (char& c : t)
@@ -227,8 +212,17 @@ std::string face_too_large(uint64_t k) {
 ///    of it: no block of it starts with an integer ([+-]digit) and none holds a '/' (whose
 ///    parts it reads as indices); otherwise the line is rejected. `v` lines need no such
 ///    rule: x y z stop at a '#' ("v 1 2 # 3" fails above), and what follows them is unread.
-/// The same pass counts `declared` (count_obj_element) on every line, comments and
-/// whitespace-led lines included, before the keyword rule skips any.
+///  - A carriage return (CR) inside a line: OpenMesh ends lines only at LF and trims CRs at
+///    a line's ends, so a CR-only line end joined two lines into one: "f 1 2 3\rf 2 4 3"
+///    became the quad 1 2 3 4, "v 5 5 5\rv 0 0 0" or "# comment\rv 0 0 0" lost a vertex and
+///    shifted every later index, a whole CR-only file was one line ("no triangles"), all
+///    without a message. Reject a line whose trimmed text holds a CR, unless all that follows
+///    each CR is a '#' comment (which OpenMesh skips as a CR-aware reader would: a face's
+///    comment then falls under the rule above). CRLF and stray CRs at a line's ends pass.
+/// The same pass counts `declared` by OpenMesh's keyword rule: the lines it reads as an `f`
+/// (each is one face it adds or drops), `l` or `p` (elements it ignores), so the face
+/// warning fires exactly when the reader dropped a face line ("f 1 1 2", "f 1 2 99", "f 1 2",
+/// an empty "f"): CRLF or CR-led lines and "f\v1 2 3" no longer miscount.
 bool check_obj(const std::string& path, std::string& error, DeclaredCounts& declared) {
     std::ifstream f;
     uint64_t size = 0;
@@ -241,9 +235,30 @@ bool check_obj(const std::string& path, std::string& error, DeclaredCounts& decl
     // results (no format flag or width is ever set), without constructing a stream per line
     // (0.02 s of bunny.obj's 0.18 s import).
     std::istringstream in;
+    // UTF-16 text (a byte order mark FE FF or FF FE, every other byte a NUL): said so, rather
+    // than the CR rule below naming its first line end ("\r\0\n").
+    char bom[2] = {};
+    if (f.read(bom, 2) && ((bom[0] == '\xfe' && bom[1] == '\xff') || (bom[0] == '\xff' && bom[1] == '\xfe'))) {
+        error = "OBJ file is UTF-16 text (it starts with a UTF-16 byte order mark); OpenMesh's reader reads 8-bit "
+                "text (ASCII or UTF-8): convert it";
+        return false;
+    }
+    f.clear();
+    f.seekg(0);
     for (uint64_t number = 1; std::getline(f, line); ++number) {
-        count_obj_element(line, declared);
         const size_t start = line.find_first_not_of(" \t\r\n");
+        if (start != std::string::npos) {
+            const size_t end = line.find_last_not_of(" \t\r\n");  // a CR before `end` is inside the line
+            for (size_t cr = line.find('\r', start); cr < end; cr = line.find('\r', cr + 1)) {
+                const size_t next = line.find_first_not_of(" \t\r", cr + 1);  // <= end
+                if (line[next] == '#') continue;
+                error = "OBJ line " + std::to_string(number) + ": a carriage return (CR) inside the line, before '" +
+                        printable(quote(line.substr(next, end - next + 1))) + "': OpenMesh's reader ends lines only at "
+                        "LF, so it would read this as part of line " + std::to_string(number) +
+                        " (CR-only line ends: convert them to LF or CRLF)";
+                return false;
+            }
+        }
         if (start == std::string::npos || line[start] == '#' ||
             std::isspace(static_cast<unsigned char>(line[start])))
             continue;
@@ -261,7 +276,12 @@ bool check_obj(const std::string& path, std::string& error, DeclaredCounts& decl
                         "vertex index)";
                 return false;
             }
+        } else if (keyword == "l") {
+            ++declared.lines;
+        } else if (keyword == "p") {
+            ++declared.points;
         } else if (keyword == "f") {
+            ++declared.faces;
             uint64_t k = 0;
             bool comment = false;  // a '#' was seen: the rest of the line is a comment
             while (in >> block) {
@@ -475,10 +495,12 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
 ///  CRLF, 'endloop endfacet' on one line) and any other is refused naming the line. As the
 ///  words are the file's words, the float reads stop where >> stops ("1-2" is 1 then -2),
 ///  in both readings.
-/// declared.faces: binary, the header's count; ASCII, the words "facet" exactly as written
-/// (lower case), every word of the file counted, those of the solid / endsolid lines too
-/// ("solid my facet model" counts one; "FACET" none): the count the warning has always
-/// used, kept as it is.
+/// declared.faces: binary, the header's count; ASCII, the complete facets of the word reading
+/// (keywords in any case, the words of a 'solid' / 'endsolid' name not counted), which in an
+/// accepted file are the triangles OpenMesh reads, one per 'outer' line; it drops those whose
+/// three vertices are not distinct, and the warning says so. (It was the words "facet" as
+/// written, those of a solid's name too: "solid my facet model" declared one face too many,
+/// "FACET" none, both false alarms.)
 bool check_stl(const std::string& path, std::string& error, DeclaredCounts& declared) {
     std::ifstream f;
     uint64_t size = 0;
@@ -526,7 +548,6 @@ bool check_stl(const std::string& path, std::string& error, DeclaredCounts& decl
     std::string line, word;
     std::istringstream in, om;
     uint64_t facets = 0, vertices = 0, complete = 0;
-    int64_t facet_words = 0;
     bool open = false, broken = false;
     int pending = 0;  // coordinates still to read of the current vertex
     Vertex v{};
@@ -567,12 +588,9 @@ bool check_stl(const std::string& path, std::string& error, DeclaredCounts& decl
                 continue;
             }
             if (!(in >> word)) break;
-            if (word == "facet") ++facet_words;
             lower(word);
             if (word == "solid" || word == "endsolid") {  // the name may hold any word ("my facet model")
                 solid_line = number;
-                while (in >> word)
-                    if (word == "facet") ++facet_words;
                 break;
             }
             if (word == "facet") {
@@ -648,7 +666,7 @@ bool check_stl(const std::string& path, std::string& error, DeclaredCounts& decl
         error = mismatch;
         return false;
     }
-    declared.faces = facet_words;
+    declared.faces = int64_t(complete);
     return true;
 }
 
