@@ -27,6 +27,7 @@
 #include <cstring>
 #include <fstream>
 #include <iostream>
+#include <mutex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -52,8 +53,10 @@ using Mesh = OpenMesh::PolyMesh_ArrayKernelT<MeshTraits>;
 /// mostream::disconnect() leaks the target wrapper that connect() allocated,
 /// so the streams are redirected ONCE per process into a buffer owned here
 /// (never back to std::cerr; nothing else in cwbvhc uses OpenMesh, see
-/// CONTRIBUTING's adapter rule) and each read starts by clearing it. The
-/// import is single-threaded.
+/// CONTRIBUTING's adapter rule) and each read starts by clearing it. One read at a time
+/// per process (a mutex held while this object lives): the buffer, OpenMesh's streams and
+/// std::cerr's buffer are process-wide, and two imports can run at once (Python threads
+/// each calling cwbvh.compile, which releases the GIL).
 ///
 /// omlog() is connected to std::clog (not std::cerr), and enabled in Debian's build (no
 /// NDEBUG): its lines ("Unsupported keyword : foo" from the PLY header parser) reached
@@ -64,7 +67,7 @@ using Mesh = OpenMesh::PolyMesh_ArrayKernelT<MeshTraits>;
 /// also when the read throws. cwbvhc's own messages go through C stdio (stderr), not these.
 class OmCapture {
 public:
-    OmCapture() : cerr_(std::cerr.rdbuf()), clog_(std::clog.rdbuf()) {
+    OmCapture() : lock_(mutex()), cerr_(std::cerr.rdbuf()), clog_(std::clog.rdbuf()) {
         static const bool redirected = [] {
             for (OpenMesh::mostream* s : {&omerr(), &omlog(), &omout()}) {
                 s->disconnect(std::cerr);
@@ -97,6 +100,11 @@ public:
     }
 
 private:
+    static std::mutex& mutex() {
+        static std::mutex m;
+        return m;
+    }
+    std::lock_guard<std::mutex> lock_;  // first member: held before the redirection, released after
     std::streambuf* const cerr_;
     std::streambuf* const clog_;
     static std::ostringstream& buffer() {

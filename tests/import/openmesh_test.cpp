@@ -3,6 +3,8 @@
 #include <cstring>
 #include <iostream>
 #include <limits>
+#include <thread>
+#include <vector>
 
 #include "import/import_test_util.h"
 
@@ -579,6 +581,41 @@ TEST(OpenMesh, ReaderMessagesAreWarningsNotRawStderr) {
         for (const std::string& w : r.warnings) warned |= w == path + ": " + c.warning;
         EXPECT_TRUE(warned) << c.name << ": " << ::testing::PrintToString(r.warnings);
     }
+}
+
+// Two imports at once (Python threads each calling cwbvh.compile: it releases the GIL) share
+// OpenMesh's streams, the capture buffer and std::cerr's buffer. Each import must still get
+// exactly its own reader messages as warnings, and nothing may reach stderr raw; without the
+// capture's process-wide lock the buffers interleave (and ASan sees the string race).
+TEST(OpenMesh, ConcurrentImportsEachGetTheirOwnReaderMessages) {
+    TempDir dir;
+    const std::string ply = dir.write(
+        "keyword.ply",
+        "ply\nformat ascii 1.0\nfoo\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+        "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    const std::string obj = dir.write("material.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl x\nf 1 2 3\n");
+    constexpr int kThreads = 4, kRounds = 25;
+    std::vector<int> bad(kThreads, 0);
+    testing::internal::CaptureStderr();
+    {
+        std::vector<std::thread> threads;
+        for (int i = 0; i < kThreads; ++i)
+            threads.emplace_back([&, i] {
+                const std::string& path = i % 2 ? obj : ply;
+                const std::string want = i % 2 ? "OpenMesh: Warning! Material 'x' not defined in material file."
+                                               : "OpenMesh: Unsupported keyword : foo";
+                for (int k = 0; k < kRounds; ++k) {
+                    const auto r = import_files({path});
+                    bool own = r.ok && r.scene.triangle_count() == 1u;
+                    for (const std::string& w : r.warnings)
+                        if (w.rfind(path + ": OpenMesh: ", 0) == 0) own &= w == path + ": " + want;
+                    bad[i] += own ? 0 : 1;
+                }
+            });
+        for (std::thread& t : threads) t.join();
+    }
+    EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+    for (int i = 0; i < kThreads; ++i) EXPECT_EQ(bad[i], 0) << "thread " << i;
 }
 
 // OpenMesh's OFF reader takes line 1 for the header ([ST][C][N]OFF, nothing before it) and
