@@ -696,6 +696,9 @@ bool check_stl(const std::string& path, std::string& error, DeclaredCounts& decl
 ///    not (it read no counts), nor text after the three counts on their line, which it read
 ///    as the first vertex ("4 2 0 7" made vertex 0 (7, 0, 0); "4 2" took the edge count
 ///    from the first vertex and shifted every coordinate).
+/// Body (ASCII): without C in the header it reads each face's count and indices with >> and
+/// nothing else, so more on a face line (a face colour, which Geomview allows in any OFF; a
+/// comment) became the next face: refused, naming the line.
 /// declared.faces: the header's face count (ASCII and binary), which OpenMesh reads.
 bool check_off(const std::string& path, std::string& error, DeclaredCounts& declared) {
     std::ifstream f;
@@ -853,7 +856,27 @@ bool check_off(const std::string& path, std::string& error, DeclaredCounts& decl
         }
         for (unsigned int j = 0; j < k; ++j)
             if (!(f >> idx)) return short_file("face", i, nf);
-        if (color) std::getline(f, rest);
+        if (color) {
+            std::getline(f, rest);
+            continue;
+        }
+        // Without C in the header OpenMesh reads on after the k indices with >>: anything
+        // more on the face's line (a face colour, which Geomview allows in any OFF file; a
+        // comment) becomes the next face's vertex count and indices. Refused, naming the line.
+        const std::streamoff at = f.tellg();
+        std::getline(f, rest);
+        if (rest.find_first_not_of(blanks) != std::string::npos) {
+            f.clear();
+            f.seekg(0);
+            std::string before(size_t(at), '\0');
+            f.read(&before[0], std::streamsize(before.size()));
+            const uint64_t line_no = 1 + uint64_t(std::count(before.begin(), before.end(), '\n'));
+            error = "OFF line " + std::to_string(line_no) + ": face " + std::to_string(i) + " has " + quote(rest) +
+                    " after its " + std::to_string(k) + " vertex indices (a face colour or a comment?), which "
+                    "OpenMesh's reader would read as the next face (it skips the rest of a face line only when "
+                    "the header is COFF)";
+            return false;
+        }
     }
     return true;
 }

@@ -661,6 +661,14 @@ TEST(OpenMesh, OffHeaderLayoutsOpenMeshMisreadsAreRefused) {
         {"four_counts_line.off", "OFF\n4 2 0 7\n" + body, "OFF line 2: '7' after the vertex/face/edge counts 4 2 0"},
         {"two_counts.off", "OFF\n4 2\n" + body, "OFF line 3: '0 0' after the vertex/face/edge counts 4 2 0"},
         {"no_counts.off", "OFF\n\n  \n", "OFF header has missing or invalid vertex/face/edge counts (the file ends at line 3)"},
+        // More than the k indices on a face line of a plain OFF: OpenMesh reads it as the next face.
+        {"face_colour.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 255 0 0\n3 0 2 3 0 255 0\n",
+         "OFF line 7: face 0 has '255 0 0' after its 3 vertex indices (a face colour or a comment?), which OpenMesh's "
+         "reader would read as the next face (it skips the rest of a face line only when the header is COFF)"},
+        {"face_comment.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 # first\n3 0 2 3\n",
+         "OFF line 7: face 0 has '# first' after its 3 vertex indices"},
+        {"face_extra_last.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3 1\n",
+         "OFF line 8: face 1 has '1' after its 3 vertex indices"},
         // Read right: accepted.
         {"plain.off", "OFF\n4 2 0\n" + body, ""},
         {"blank_lines.off", "OFF\n\n \t\n4 2 0\n" + body, ""},
@@ -671,6 +679,11 @@ TEST(OpenMesh, OffHeaderLayoutsOpenMeshMisreadsAreRefused) {
         {"trailing_blanks.off", "OFF\n4 2 0 \t\n" + body, ""},
         {"coff.off", "COFF\n4 2 0\n" + colours, ""},
         {"noff.off", "NOFF\n4 2 0\n" + normals, ""},
+        {"face_over_lines.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3\n0 1\n2\n3 0 2 3\n", ""},
+        {"face_no_newline.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3", ""},
+        {"face_crlf_blanks.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 \t\r\n3 0 2 3\r\n", ""},
+        {"coff_face_colour.off",
+         "COFF\n4 2 0\n0 0 0 255 0 0\n1 0 0 255 0 0\n1 1 0 255 0 0\n0 1 0 255 0 0\n3 0 1 2 9 9 9\n3 0 2 3 9 9 9\n", ""},
     };
     for (const Case& c : cases) {
         const std::string path = dir.write(c.name, c.text);
