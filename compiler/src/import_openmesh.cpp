@@ -351,11 +351,16 @@ bool check_obj(const std::string& path, std::string& error, DeclaredCounts& decl
 ///    (check_ply_tokens), not our line reading's.
 ///  - ASCII (format ascii 1.0): OpenMesh reads the body with >> and keeps going after the
 ///    stream has failed, so a body shorter than its header (a truncated file) repeats the
-///    last face it read (a duplicate triangle, exit 0). Replay the reads: every element
-///    and property the header declares must be there; a list of more than
-///    kMaxFaceVertices entries is refused (quadratic import). Binary PLY is checked by
-///    OpenMesh itself.
-///  - declared.faces: the count of the first "element face" line, -1 without one.
+///    last face it read (a duplicate triangle, exit 0), and a value it cannot read leaves
+///    its variable uninitialised. Replay the reads: every element and property the header
+///    declares must be there, each value OpenMesh reads as a number must be one, whole, in
+///    its reading (below); a list of more than kMaxFaceVertices entries is refused
+///    (quadratic import). Binary PLY is checked by OpenMesh itself.
+///  - Both: a list property other than the faces' vertex_indices, in an element OpenMesh
+///    reads, and face properties before vertex_indices, are refused (OpenMesh reads such a
+///    list as one value and drops those properties: the faces come out wrong); so is a
+///    second face element.
+///  - declared.faces: the count of the "element face" line, -1 without one.
 bool check_ply(const std::string& path, std::string& error, DeclaredCounts& declared) {
     std::ifstream f;
     uint64_t size = 0;
@@ -365,10 +370,15 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
     f.clear();
     f.seekg(0);
     declared = DeclaredCounts{};
+    struct Property {
+        std::string name, type;  // type: the scalar type, or a list's entry type
+        bool list = false;
+        int line = 0;
+    };
     struct Element {
         std::string name;
         uint64_t count = 0;
-        std::vector<bool> is_list;
+        std::vector<Property> properties;
     };
     std::vector<Element> elements;
     const bool ascii = file_type == "ascii";
@@ -420,15 +430,31 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
             // count_text is a whole strtoull number no larger than the file, so it reads as
             // the same value with >> into uint64_t or long long ("+5": 5, "-0": 0).
             elements.push_back(Element{name, count, {}});
-            if (name == "face" && !face_seen) {
+            if (name == "face") {
+                if (face_seen) {
+                    // OpenMesh reads the first face element with the LAST one's count.
+                    error = "PLY header line " + std::to_string(n + 1) + ": a second 'face' element (OpenMesh's "
+                            "reader would read the first with this one's count)";
+                    return false;
+                }
                 face_seen = true;
                 declared.faces = int64_t(count);
             }
         } else if (word == "property") {
             element_has_property = true;
-            std::string a;
+            Property prop;
+            prop.line = n + 1;
+            std::string a, b;
             in >> a;
-            if (!elements.empty()) elements.back().is_list.push_back(a == "list");
+            if (a == "list") {
+                prop.list = true;
+                in >> b >> prop.type >> prop.name;  // count type, entry type, name
+            } else {
+                in >> b;
+                // OpenMesh takes "type name" in either order (get_property_name).
+                prop.type = a, prop.name = b;
+            }
+            if (!elements.empty()) elements.back().properties.push_back(prop);
         } else if (word == "format") {
             if (format_line > 0) {
                 error = "PLY header has more than one 'format' line (lines " + std::to_string(format_line) + " and " +
@@ -442,17 +468,134 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
         error = "PLY header has no end_header";
         return false;
     }
+    // The elements OpenMesh reads (every one up to the first face element; it stops after the
+    // faces) and how (_PLYReader_::can_u_read, read_ascii, read_binary): it reads the face
+    // element's vertex_indices (or vertex_index) list as a list, but any other list property
+    // as ONE value (ASCII: one word; binary: one entry's bytes), and it drops the face
+    // properties declared before vertex_indices while the file still holds their values. Both
+    // shift every later read: a face 'texcoord' list lost faces and made others from texture
+    // coordinates; a face 'flags' property before vertex_indices had the flags read as vertex
+    // counts. Refused, naming the line.
+    size_t read_elements = elements.size();
+    for (size_t e = 0; e < elements.size(); ++e)
+        if (elements[e].name == "face") {
+            read_elements = e + 1;
+            break;
+        }
+    auto is_vertex_indices = [](const Element& e, const Property& p) {
+        return e.name == "face" && p.list && (p.name == "vertex_indices" || p.name == "vertex_index");
+    };
+    for (size_t e = 0; e < read_elements; ++e) {
+        const Element& el = elements[e];
+        for (size_t i = 0; i < el.properties.size(); ++i) {
+            const Property& p = el.properties[i];
+            const std::string at = "PLY header line " + std::to_string(p.line) + ": ";
+            if (is_vertex_indices(el, p)) {
+                if (i > 0) {
+                    error = at + "the face element's vertex index list comes after " + std::to_string(i) +
+                            " other face properties ('" + printable(el.properties[0].name) + "' first); OpenMesh's "
+                            "reader drops those properties but the file holds their values, so it would read the "
+                            "faces wrong (declare vertex_indices first)";
+                    return false;
+                }
+                continue;
+            }
+            if (p.list) {
+                error = at + "list property '" + printable(p.name) + "' of element '" + printable(el.name) +
+                        "': OpenMesh's reader reads a list other than the faces' vertex_indices as a single value, "
+                        "so it would read every later " + printable(el.name) + " wrong (remove the property)";
+                return false;
+            }
+        }
+    }
     if (!ascii) return true;
+    // ASCII: replay OpenMesh's reads, each with the type it reads into (read_ascii: vertex
+    // coordinates, normals and texture coordinates with >> float, colours with >> float or
+    // >> int by their declared type, the face's vertex count and indices with >> unsigned,
+    // every other property as one word; elements after the faces are not read), on the
+    // file's words: each read must succeed and take its whole word. A read that fails left
+    // OpenMesh's variable as it was, uninitialised at first (a fuzzed file had it reserve 2
+    // GiB for one face), and one that takes part of a word ("1.5" for an index, "1.5.2" for
+    // a coordinate) shifts the rest. Every element the header declares must be there.
+    enum class Read { kWord, kFloat, kInt, kUnsigned };
+    auto read_as = [](const Element& el, const Property& p) {
+        const bool is_float_type = p.type == "float" || p.type == "float32";
+        const std::string& n = p.name;
+        if (el.name == "vertex") {
+            if (n == "x" || n == "y" || n == "z" || n == "nx" || n == "ny" || n == "nz" || n == "u" || n == "s" ||
+                n == "v" || n == "t")
+                return Read::kFloat;
+            if (n == "red" || n == "green" || n == "blue" || n == "diffuse_red" || n == "diffuse_green" ||
+                n == "diffuse_blue" || n == "alpha")
+                return is_float_type ? Read::kFloat : Read::kInt;
+        } else if (el.name == "face") {
+            if (n == "red" || n == "green" || n == "blue" || n == "alpha") return is_float_type ? Read::kFloat : Read::kInt;
+        }
+        return Read::kWord;
+    };
+    std::istringstream value;
+    auto whole = [&value](const std::string& word, auto& x) {  // >> x takes all of `word`
+        value.str(word);
+        value.clear();
+        value >> x;
+        return !value.fail() && value.peek() == std::char_traits<char>::eof();
+    };
+    // What >> certainly reads whole, decided without a stream (most words; about a third of a
+    // large ASCII file's import time otherwise): [+-] and at most 9 digits for the integers;
+    // [+-], digits with at most one '.', no exponent, at most 38 digits before the point
+    // (below FLT_MAX) for a float. Anything else goes through the stream.
+    auto plainly = [](const std::string& word, Read how) {
+        size_t i = word.size() > 0 && (word[0] == '+' || word[0] == '-') ? 1 : 0;
+        size_t digits = 0, before_point = 0;
+        bool point = false;
+        for (; i < word.size(); ++i) {
+            const char c = word[i];
+            if (c >= '0' && c <= '9') {
+                ++digits;
+                before_point += point ? 0 : 1;
+            } else if (c == '.' && how == Read::kFloat && !point) {
+                point = true;
+            } else {
+                return false;
+            }
+        }
+        return digits > 0 && (how == Read::kFloat ? before_point <= 38 : digits <= 9);
+    };
+    auto word_fits = [&](const std::string& word, Read how) {
+        if (how == Read::kWord || plainly(word, how)) return true;
+        float x = 0;
+        int i = 0;
+        unsigned int u = 0;
+        switch (how) {
+            case Read::kFloat: return whole(word, x);
+            case Read::kInt: return whole(word, i);
+            case Read::kUnsigned: return whole(word, u);
+            case Read::kWord: break;
+        }
+        return true;
+    };
+    auto unreadable = [&](const Element& el, uint64_t i, const Property& p, const std::string& word, Read how) {
+        error = "PLY " + el.name + " " + std::to_string(i) + ": '" +
+                printable(word.size() > 48 ? word.substr(0, 48) + "..." : word) + "' for property '" +
+                printable(p.name) + "' is not " +
+                (how == Read::kFloat ? "a float number" : how == Read::kInt ? "an integer" : "an unsigned integer") +
+                " as OpenMesh's reader reads it (it would read this and every later value wrong)";
+        return false;
+    };
     std::string token;
-    for (const Element& e : elements) {
-        for (uint64_t i = 0; i < e.count; ++i) {
-            for (const bool list : e.is_list) {
-                if (!list) {
+    for (size_t e = 0; e < elements.size(); ++e) {
+        const Element& el = elements[e];
+        const bool read_by_openmesh = e < read_elements;
+        for (uint64_t i = 0; i < el.count; ++i) {
+            for (const Property& p : el.properties) {
+                if (!p.list) {
                     if (!(f >> token)) {
-                        error = "PLY file is truncated at " + e.name + " " + std::to_string(i) + " of " +
-                                std::to_string(e.count);
+                        error = "PLY file is truncated at " + el.name + " " + std::to_string(i) + " of " +
+                                std::to_string(el.count);
                         return false;
                     }
+                    const Read how = read_by_openmesh ? read_as(el, p) : Read::kWord;
+                    if (!word_fits(token, how)) return unreadable(el, i, p, token, how);
                     continue;
                 }
                 // The list's length: a decimal integer (">> uint64_t" would take "-1" as 2^64 - 1
@@ -461,20 +604,23 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
                 char* end = nullptr;
                 if (!(f >> token) || token[0] < '0' || token[0] > '9' ||
                     (k = std::strtoull(token.c_str(), &end, 10), *end != '\0')) {
-                    error = "PLY file is truncated or unparsable at " + e.name + " " + std::to_string(i) + " of " +
-                            std::to_string(e.count);
+                    error = "PLY file is truncated or unparsable at " + el.name + " " + std::to_string(i) + " of " +
+                            std::to_string(el.count);
                     return false;
                 }
                 if (k > kMaxFaceVertices) {
-                    error = "PLY " + e.name + " " + std::to_string(i) + ": " + face_too_large(k);
+                    error = "PLY " + el.name + " " + std::to_string(i) + ": " + face_too_large(k);
                     return false;
                 }
-                for (uint64_t j = 0; j < k; ++j)
+                const Read how = read_by_openmesh && is_vertex_indices(el, p) ? Read::kUnsigned : Read::kWord;
+                for (uint64_t j = 0; j < k; ++j) {
                     if (!(f >> token)) {
-                        error = "PLY file is truncated at " + e.name + " " + std::to_string(i) + " of " +
-                                std::to_string(e.count);
+                        error = "PLY file is truncated at " + el.name + " " + std::to_string(i) + " of " +
+                                std::to_string(el.count);
                         return false;
                     }
+                    if (!word_fits(token, how)) return unreadable(el, i, p, token, how);
+                }
             }
         }
     }

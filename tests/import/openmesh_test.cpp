@@ -365,7 +365,8 @@ TEST(OpenMesh, DeclaredFaceCounts) {
         {"two_face_elements.ply",
          ply_head + "element face 2\n" + ply_face + "element face 1\n" + ply_face + "end_header\n" + ply_body +
              "3 0 1 3\n",
-         "ok 1; declares 2 faces but OpenMesh read 1; rejected 1"},
+         "error: PLY header line 9: a second 'face' element (OpenMesh's reader would read the first with this one's "
+         "count)"},
         {"repeated.ply", ply_head + "element face 2\n" + ply_face + "end_header\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 1 2\n",
          "ok 1; declares 2 faces but OpenMesh read 1; rejected 1"},
         {"truncated.ply", ply_head + "element face 2\n" + ply_face + "end_header\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3\n",
@@ -506,6 +507,109 @@ TEST(OpenMesh, ObjCommentAfterFaceDataIsReadRightOrRefused) {
 // read as a repeated face (exit 0). Two 'format' lines are refused; the check follows OpenMesh.
 // A word after end_header on its line is refused (OpenMesh read it as body data, with
 // uninitialised values: an error or a hang).
+// OpenMesh's PLY reader reads a list other than the faces' vertex_indices as one value,
+// drops face properties declared before vertex_indices (their values stay in the file), and
+// in ASCII reads coordinates with >> float and face counts and indices with >> unsigned,
+// going on after a failed read with the old (at first uninitialised) value. Each such file
+// gave wrong faces with at most a count warning, or (fuzzed) a 2 GiB allocation; each is
+// refused now. Layouts it reads right still load, binary ones too.
+TEST(OpenMesh, PlyLayoutsOpenMeshMisreadsAreRefused) {
+    TempDir dir;
+    const std::string vertex = "element vertex 4\nproperty float x\nproperty float y\nproperty float z\n";
+    const std::string body_v = "0 0 0\n1 0 0\n1 1 0\n0 1 0\n";
+    struct Case {
+        const char* name;
+        std::string text, error;  // error: the message after "<path>: "; empty: accepted, 2 triangles
+    };
+    const Case cases[] = {
+        {"texcoord_list.ply",
+         "ply\nformat ascii 1.0\n" + vertex +
+             "element face 2\nproperty list uchar int vertex_indices\nproperty list uchar float texcoord\nend_header\n" +
+             body_v + "3 0 1 2 6 0 0 1 0 1 1\n3 0 2 3 6 0 0 1 1 0 1\n",
+         "PLY header line 9: list property 'texcoord' of element 'face': OpenMesh's reader reads a list other than "
+         "the faces' vertex_indices as a single value, so it would read every later face wrong (remove the property)"},
+        {"vertex_list.ply",
+         "ply\nformat ascii 1.0\n" + vertex + "property list uchar float weights\nelement face 2\n"
+             "property list uchar int vertex_indices\nend_header\n0 0 0 1 5\n1 0 0 1 5\n1 1 0 1 5\n0 1 0 1 5\n"
+             "3 0 1 2\n3 0 2 3\n",
+         "PLY header line 7: list property 'weights' of element 'vertex'"},
+        {"flags_first.ply",
+         "ply\nformat ascii 1.0\n" + vertex +
+             "element face 2\nproperty uchar flags\nproperty list uchar int vertex_indices\nend_header\n" + body_v +
+             "7 3 0 1 2\n7 3 0 2 3\n",
+         "PLY header line 9: the face element's vertex index list comes after 1 other face properties ('flags' "
+         "first)"},
+        {"fractional_index.ply",
+         "ply\nformat ascii 1.0\n" + vertex + "element face 2\nproperty list uchar int vertex_indices\nend_header\n" +
+             body_v + "3 0 1 2.5\n3 0 2 3\n",
+         "PLY face 0: '2.5' for property 'vertex_indices' is not an unsigned integer as OpenMesh's reader reads it"},
+        {"bad_coordinate.ply",
+         "ply\nformat ascii 1.0\n" + vertex + "element face 2\nproperty list uchar int vertex_indices\nend_header\n"
+             "0 0 0\n1 0 0\n1 1 x\n0 1 0\n3 0 1 2\n3 0 2 3\n",
+         "PLY vertex 2: 'x' for property 'z' is not a float number as OpenMesh's reader reads it"},
+        {"two_dots.ply",
+         "ply\nformat ascii 1.0\n" + vertex + "element face 2\nproperty list uchar int vertex_indices\nend_header\n"
+             "0 0 0\n1 0 0\n1 1.5.2 0\n0 1 0\n3 0 1 2\n3 0 2 3\n",
+         "PLY vertex 2: '1.5.2' for property 'y' is not a float number"},
+        {"int_colour.ply",
+         "ply\nformat ascii 1.0\n" + vertex + "property uchar red\nelement face 2\n"
+             "property list uchar int vertex_indices\nend_header\n0 0 0 9\n1 0 0 9\n1 1 0 0.5\n0 1 0 9\n"
+             "3 0 1 2\n3 0 2 3\n",
+         "PLY vertex 2: '0.5' for property 'red' is not an integer"},
+        // Read right: accepted.
+        {"plain.ply",
+         "ply\nformat ascii 1.0\n" + vertex + "element face 2\nproperty list uchar int vertex_indices\nend_header\n" +
+             body_v + "3 0 1 2\n3 0 2 3\n",
+         ""},
+        {"face_colour_after.ply",
+         "ply\nformat ascii 1.0\n" + vertex +
+             "element face 2\nproperty list uchar int vertex_indices\nproperty uchar red\nproperty float quality\n"
+             "end_header\n" + body_v + "3 0 1 2 255 0.5\n3 0 2 3 0 1e-3\n",
+         ""},
+        {"int_coordinates.ply",
+         "ply\nformat ascii 1.0\nelement vertex 4\nproperty int x\nproperty int y\nproperty int z\n"
+             "element face 2\nproperty list uchar int vertex_indices\nend_header\n" + body_v + "3 0 1 2\n3 0 2 3\n",
+         ""},
+        {"lists_after_faces.ply",
+         "ply\nformat ascii 1.0\n" + vertex + "element face 2\nproperty list uchar int vertex_indices\n"
+             "element edge 1\nproperty list uchar int vertices\nend_header\n" + body_v + "3 0 1 2\n3 0 2 3\n2 0 1\n",
+         ""},
+        {"vertex_index.ply",
+         "ply\nformat ascii 1.0\n" + vertex + "element face 2\nproperty list uchar int vertex_index\nend_header\n" +
+             body_v + "3 0 1 2\n3 0 2 3\n",
+         ""},
+    };
+    for (const Case& c : cases) {
+        const std::string path = dir.write(c.name, c.text);
+        const auto r = import_files({path});
+        if (!c.error.empty()) {
+            ASSERT_FALSE(r.ok) << c.name;
+            EXPECT_EQ(r.error.rfind(path + ": " + c.error, 0), 0u) << c.name << ": " << r.error;
+            continue;
+        }
+        ASSERT_TRUE(r.ok) << c.name << ": " << r.error;
+        ASSERT_EQ(r.scene.triangle_count(), 2u) << c.name;
+        EXPECT_EQ(r.scene.triangle(0), (std::array<Vec3, 3>{Vec3{0, 0, 0}, Vec3{1, 0, 0}, Vec3{1, 1, 0}})) << c.name;
+        EXPECT_EQ(r.scene.triangle(1), (std::array<Vec3, 3>{Vec3{0, 0, 0}, Vec3{1, 1, 0}, Vec3{0, 1, 0}})) << c.name;
+    }
+    // Binary: the same header rule (a face texcoord list: OpenMesh skips one entry's bytes).
+    std::string bin = "ply\nformat binary_little_endian 1.0\n" + vertex +
+                      "element face 1\nproperty list uchar int vertex_indices\nproperty list uchar float texcoord\n"
+                      "end_header\n";
+    const float xyz[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+    bin.append(reinterpret_cast<const char*>(xyz), sizeof xyz);
+    const int32_t tri[3] = {0, 1, 2};
+    const float uv[6] = {0, 0, 1, 0, 1, 1};
+    bin.push_back(char(3));
+    bin.append(reinterpret_cast<const char*>(tri), sizeof tri);
+    bin.push_back(char(6));
+    bin.append(reinterpret_cast<const char*>(uv), sizeof uv);
+    const std::string path = dir.write("texcoord_binary.ply", bin);
+    const auto r = import_files({path});
+    ASSERT_FALSE(r.ok);
+    EXPECT_EQ(r.error.rfind(path + ": PLY header line 9: list property 'texcoord' of element 'face'", 0), 0u) << r.error;
+}
+
 TEST(OpenMesh, PlyFormatIsTheOneOpenMeshReads) {
     TempDir dir;
     const std::string rest = "element vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
