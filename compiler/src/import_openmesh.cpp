@@ -21,6 +21,7 @@
 #include <strings.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cstdlib>
 #include <cstdint>
@@ -30,6 +31,7 @@
 #include <mutex>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <OpenMesh/Core/IO/MeshIO.hh>
@@ -49,25 +51,61 @@ struct MeshTraits : public OpenMesh::DefaultTraits {
 };
 using Mesh = OpenMesh::PolyMesh_ArrayKernelT<MeshTraits>;
 
-/// Captures OpenMesh's omerr()/omlog()/omout() for one read. OpenMesh's
-/// mostream::disconnect() leaks the target wrapper that connect() allocated,
-/// so the streams are redirected ONCE per process into a buffer owned here
-/// (never back to std::cerr; nothing else in cwbvhc uses OpenMesh, see
-/// CONTRIBUTING's adapter rule) and each read starts by clearing it. One read at a time
-/// per process (a mutex held while this object lives): the buffer, OpenMesh's streams and
-/// std::cerr's buffer are process-wide, and two imports can run at once (Python threads
+/// A stream buffer in front of std::cerr's (or std::clog's) own: what one thread writes
+/// while it captures goes to the capture buffer, everything else (other threads, and the
+/// capturing thread outside read_mesh) to the original buffer, unchanged and unbuffered.
+class ThreadRoute final : public std::streambuf {
+public:
+    explicit ThreadRoute(std::streambuf* original) : original_(original) {}
+    void capture(std::streambuf* sink) {
+        sink_ = sink;  // before owner_: a thread that sees its own id sees this sink
+        owner_.store(std::this_thread::get_id());
+    }
+    void release() { owner_.store(std::thread::id()); }
+
+protected:
+    int_type overflow(int_type c) override {
+        if (traits_type::eq_int_type(c, traits_type::eof())) return traits_type::not_eof(c);
+        std::streambuf* to = target();
+        return to ? to->sputc(traits_type::to_char_type(c)) : c;
+    }
+    std::streamsize xsputn(const char* s, std::streamsize n) override {
+        std::streambuf* to = target();
+        return to ? to->sputn(s, n) : n;
+    }
+    int sync() override {
+        std::streambuf* to = target();
+        return to ? to->pubsync() : 0;
+    }
+
+private:
+    std::streambuf* target() const { return owner_.load() == std::this_thread::get_id() ? sink_ : original_; }
+    std::streambuf* const original_;
+    std::streambuf* sink_ = nullptr;
+    std::atomic<std::thread::id> owner_{};
+};
+
+/// Captures OpenMesh's messages for one read. OpenMesh's mostream::disconnect() leaks the
+/// target wrapper that connect() allocated, so omerr()/omlog()/omout() are redirected ONCE
+/// per process into a buffer owned here (never back to std::cerr; nothing else in cwbvhc
+/// uses OpenMesh, see CONTRIBUTING's adapter rule) and each read starts by clearing it.
+/// One read at a time per process (a mutex held while this object lives): the buffer and
+/// OpenMesh's streams are process-wide, and two imports can run at once (Python threads
 /// each calling cwbvh.compile, which releases the GIL).
 ///
 /// omlog() is connected to std::clog (not std::cerr), and enabled in Debian's build (no
 /// NDEBUG): its lines ("Unsupported keyword : foo" from the PLY header parser) reached
 /// stderr raw as well as the buffer, so std::clog is disconnected too. Some readers write
 /// to std::cerr directly ("Error in file format (colorType = 7)" in OFFReader.cc, the PLY
-/// reader's "unsupported type" ones): std::cerr's and std::clog's buffers are pointed at
-/// the same buffer while this object lives (one read_mesh), and restored by its destructor,
-/// also when the read throws. cwbvhc's own messages go through C stdio (stderr), not these.
+/// reader's "unsupported type" ones): std::cerr and std::clog get a ThreadRoute in front of
+/// their buffers, once per process, which sends the importing thread's writes to the same
+/// buffer while this object lives (one read_mesh; released by the destructor, also when the
+/// read throws). Other threads' writes pass through: swapping std::cerr's buffer for the
+/// read had put them into the import's warnings (a review found 9,230 such lines in 2,000
+/// imports beside a writing thread). cwbvhc's own messages go through C stdio (stderr).
 class OmCapture {
 public:
-    OmCapture() : lock_(mutex()), cerr_(std::cerr.rdbuf()), clog_(std::clog.rdbuf()) {
+    OmCapture() : lock_(mutex()) {
         static const bool redirected = [] {
             for (OpenMesh::mostream* s : {&omerr(), &omlog(), &omout()}) {
                 s->disconnect(std::cerr);
@@ -75,16 +113,20 @@ public:
                 s->disconnect(std::cout);
                 s->connect(buffer());
             }
+            cerr_route() = new ThreadRoute(std::cerr.rdbuf());  // process lifetime, as the streams
+            clog_route() = new ThreadRoute(std::clog.rdbuf());
+            std::cerr.rdbuf(cerr_route());
+            std::clog.rdbuf(clog_route());
             return true;
         }();
         (void)redirected;
         buffer().str(std::string());
-        std::cerr.rdbuf(buffer().rdbuf());
-        std::clog.rdbuf(buffer().rdbuf());
+        cerr_route()->capture(buffer().rdbuf());
+        clog_route()->capture(buffer().rdbuf());
     }
     ~OmCapture() {
-        std::cerr.rdbuf(cerr_);
-        std::clog.rdbuf(clog_);
+        cerr_route()->release();
+        clog_route()->release();
     }
     OmCapture(const OmCapture&) = delete;
     OmCapture& operator=(const OmCapture&) = delete;
@@ -104,9 +146,15 @@ private:
         static std::mutex m;
         return m;
     }
-    std::lock_guard<std::mutex> lock_;  // first member: held before the redirection, released after
-    std::streambuf* const cerr_;
-    std::streambuf* const clog_;
+    static ThreadRoute*& cerr_route() {
+        static ThreadRoute* r = nullptr;
+        return r;
+    }
+    static ThreadRoute*& clog_route() {
+        static ThreadRoute* r = nullptr;
+        return r;
+    }
+    std::lock_guard<std::mutex> lock_;  // held from before the capture until after its release
     static std::ostringstream& buffer() {
         static std::ostringstream* text = new std::ostringstream;  // outlives OpenMesh's statics
         return *text;
@@ -253,6 +301,23 @@ bool check_obj(const std::string& path, std::string& error, DeclaredCounts& decl
     }
     f.clear();
     f.seekg(0);
+    // A UTF-8 byte order mark (EF BB BF): OpenMesh reads it as part of the first line's
+    // keyword, so a first line 'v ...' was dropped (every later index then named the next
+    // vertex: wrong geometry, no message). Refused unless that line is a comment or blank.
+    {
+        std::string first;
+        std::getline(f, first);
+        if (first.size() >= 3 && first.compare(0, 3, "\xef\xbb\xbf") == 0) {
+            const size_t start = first.find_first_not_of(" \t\r\n", 3);
+            if (start != std::string::npos && first[start] != '#') {
+                error = "OBJ file starts with a UTF-8 byte order mark, which OpenMesh's reader takes as part of line "
+                        "1's keyword (it would drop that line and shift every later vertex index): remove the mark";
+                return false;
+            }
+        }
+        f.clear();
+        f.seekg(0);
+    }
     for (uint64_t number = 1; std::getline(f, line); ++number) {
         const size_t start = line.find_first_not_of(" \t\r\n");
         if (start != std::string::npos) {
@@ -361,6 +426,16 @@ bool check_obj(const std::string& path, std::string& error, DeclaredCounts& decl
 ///    list as one value and drops those properties: the faces come out wrong); so is a
 ///    second face element.
 ///  - declared.faces: the count of the "element face" line, -1 without one.
+/// A PLY scalar type OpenMesh 9 knows (PLYReader.cc get_property_type).
+bool is_ply_type(const std::string& t) {
+    static const char* const kTypes[] = {"float32", "float64", "float", "double", "int8",   "uint8",
+                                         "char",    "uchar",   "int32", "uint32", "int",    "uint",
+                                         "int16",   "uint16",  "short", "ushort"};
+    for (const char* k : kTypes)
+        if (t == k) return true;
+    return false;
+}
+
 bool check_ply(const std::string& path, std::string& error, DeclaredCounts& declared) {
     std::ifstream f;
     uint64_t size = 0;
@@ -451,8 +526,11 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
                 in >> b >> prop.type >> prop.name;  // count type, entry type, name
             } else {
                 in >> b;
-                // OpenMesh takes "type name" in either order (get_property_name).
-                prop.type = a, prop.name = b;
+                // OpenMesh takes "type name" in either order (get_property_name); neither a type:
+                // an unknown type, named "Unsupported" (kept in `type` for the check below).
+                if (is_ply_type(a)) prop.type = a, prop.name = b;
+                else if (is_ply_type(b)) prop.type = b, prop.name = a;
+                else prop.type = a, prop.name = b;
             }
             if (!elements.empty()) elements.back().properties.push_back(prop);
         } else if (word == "format") {
@@ -487,9 +565,19 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
     };
     for (size_t e = 0; e < read_elements; ++e) {
         const Element& el = elements[e];
+        if (el.count == 0) continue;  // nothing of it is read
         for (size_t i = 0; i < el.properties.size(); ++i) {
             const Property& p = el.properties[i];
             const std::string at = "PLY header line " + std::to_string(p.line) + ": ";
+            // Binary: a type OpenMesh does not know takes no bytes in its reading (and in a
+            // vertex_indices list, no index), so every later value shifts. (ASCII reads such a
+            // value as a word, which is right.)
+            if (!ascii && !is_ply_type(p.type)) {
+                error = at + "property '" + printable(p.name) + "' of element '" + printable(el.name) + "' has the "
+                        "type '" + printable(p.type) + "', which OpenMesh's reader does not know (it would read every "
+                        "later value of a binary file from the wrong bytes)";
+                return false;
+            }
             if (is_vertex_indices(el, p)) {
                 if (i > 0) {
                     error = at + "the face element's vertex index list comes after " + std::to_string(i) +
@@ -542,8 +630,8 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
     };
     // What >> certainly reads whole, decided without a stream (most words; about a third of a
     // large ASCII file's import time otherwise): [+-] and at most 9 digits for the integers;
-    // [+-], digits with at most one '.', no exponent, at most 38 digits before the point
-    // (below FLT_MAX) for a float. Anything else goes through the stream.
+    // [+-], digits with at most one '.', an optional exponent of at most two digits, and a
+    // value below 10^38 (FLT_MAX is 3.4e38) for a float. Anything else goes through the stream.
     auto plainly = [](const std::string& word, Read how) {
         size_t i = word.size() > 0 && (word[0] == '+' || word[0] == '-') ? 1 : 0;
         size_t digits = 0, before_point = 0;
@@ -556,10 +644,26 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
             } else if (c == '.' && how == Read::kFloat && !point) {
                 point = true;
             } else {
-                return false;
+                break;
             }
         }
-        return digits > 0 && (how == Read::kFloat ? before_point <= 38 : digits <= 9);
+        if (digits == 0) return false;
+        if (how != Read::kFloat) return i == word.size() && digits <= 9;
+        // A float: then an exponent [eE][+-]d{1,2}, if any. >> float fails only on overflow
+        // (underflow gives a subnormal or 0), so require before_point + exponent <= 38.
+        int exponent = 0;
+        if (i < word.size()) {
+            if (word[i] != 'e' && word[i] != 'E') return false;
+            ++i;
+            const bool negative = i < word.size() && word[i] == '-';
+            i += i < word.size() && (word[i] == '+' || word[i] == '-') ? 1 : 0;
+            const size_t first = i;
+            for (; i < word.size() && word[i] >= '0' && word[i] <= '9' && i - first < 2; ++i)
+                exponent = 10 * exponent + (word[i] - '0');
+            if (i == first || i != word.size()) return false;
+            exponent = negative ? -exponent : exponent;
+        }
+        return int(before_point) + exponent <= 38;
     };
     auto word_fits = [&](const std::string& word, Read how) {
         if (how == Read::kWord || plainly(word, how)) return true;
@@ -872,6 +976,9 @@ bool check_off(const std::string& path, std::string& error, DeclaredCounts& decl
     }
     if (left < 3 || std::strncmp(p, "OFF", 3) != 0) {
         error = size == 0 ? std::string("OFF file is empty")
+                : first.compare(0, 3, "\xef\xbb\xbf") == 0
+                    ? std::string("OFF line 1: the file starts with a UTF-8 byte order mark, before the OFF header "
+                                  "(OpenMesh's reader reads the header from the very first byte): remove the mark")
                           : "OFF line 1: " + quote(first) + " is not an OFF header ([ST][C][N]OFF, at the very start of "
                             "the file: OpenMesh's reader skips no comment or blank before it)";
         return false;
@@ -879,13 +986,19 @@ bool check_off(const std::string& path, std::string& error, DeclaredCounts& decl
     left = left >= 4 ? left - 4 : 0;
     const bool binary = left >= 6 && std::strncmp(p + 4, "BINARY", 6) == 0;
     if (!binary) {
+        // Counts on the header line: its rest starts with two or more whole integers ("OFF 4 2 0",
+        // "OFF4 2 0", "OFF 4 2"); other words there ("OFF 3D mesh", "OFF # comment") OpenMesh
+        // ignores, and so does this check.
         const std::string after = first.substr(size_t(p + 3 - first.c_str()));
-        const size_t w = after.find_first_not_of(" \t\r\v\f");
-        const size_t digit = w != std::string::npos && (after[w] == '+' || after[w] == '-') ? w + 1 : w;
-        if (digit < after.size() &&
-            (std::isdigit(static_cast<unsigned char>(after[digit])) ||
-             (after[digit] == '.' && digit + 1 < after.size() &&
-              std::isdigit(static_cast<unsigned char>(after[digit + 1]))))) {
+        std::istringstream words(after);
+        std::string word;
+        int integers = 0;
+        while (integers < 2 && words >> word) {
+            const size_t sign = word[0] == '+' || word[0] == '-' ? 1 : 0;
+            if (word.size() == sign || word.find_first_not_of("0123456789", sign) != std::string::npos) break;
+            ++integers;
+        }
+        if (integers == 2) {
             error = "OFF line 1: the counts are on the header line (" + quote(first) + "), but OpenMesh's reader "
                     "ignores the rest of that line and reads the counts from the next one: put " + quote(after) +
                     " on a line of its own";
@@ -1009,18 +1122,20 @@ bool check_off(const std::string& path, std::string& error, DeclaredCounts& decl
         // Without C in the header OpenMesh reads on after the k indices with >>: anything
         // more on the face's line (a face colour, which Geomview allows in any OFF file; a
         // comment) becomes the next face's vertex count and indices. Refused, naming the line.
+        if (f.eof()) break;  // the last index ended the file: nothing follows on its line
         const std::streamoff at = f.tellg();
+        rest.clear();
         std::getline(f, rest);
-        if (rest.find_first_not_of(blanks) != std::string::npos) {
+        if (at >= 0 && rest.find_first_not_of(blanks) != std::string::npos) {
             f.clear();
             f.seekg(0);
             std::string before(size_t(at), '\0');
             f.read(&before[0], std::streamsize(before.size()));
             const uint64_t line_no = 1 + uint64_t(std::count(before.begin(), before.end(), '\n'));
             error = "OFF line " + std::to_string(line_no) + ": face " + std::to_string(i) + " has " + quote(rest) +
-                    " after its " + std::to_string(k) + " vertex indices (a face colour or a comment?), which "
-                    "OpenMesh's reader would read as the next face (it skips the rest of a face line only when "
-                    "the header is COFF)";
+                    " after its " + std::to_string(k) + " vertex indices (a face colour, a comment, or a second "
+                    "face on the line?), which OpenMesh's reader would read as the next face and Geomview as a "
+                    "colour (OpenMesh skips the rest of a face line only when the header is COFF): one face a line";
             return false;
         }
     }
@@ -1080,7 +1195,7 @@ Result import_openmesh(const std::string& path, const ImportOptions& options, Ra
     }
     if (!ok) {
         error = "OpenMesh could not read the file as " + ext;
-        if (!om_lines.empty()) error += " (" + om_lines.front() + ")";
+        if (!om_lines.empty()) error += " (" + om_lines.back() + ")";  // its last word: the reason
         return bad(error);
     }
     constexpr size_t kMaxReaderLines = 5;

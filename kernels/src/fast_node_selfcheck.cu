@@ -105,6 +105,20 @@ double any_double(std::mt19937_64& g) {
     switch (g() % 8) {
         case 0: return double(bits_to_float(uint32_t(bits)));  // a float (or a float NaN / inf)
         case 1: return (bits & 1) ? -0.0 : 0.0;
+        case 2: {
+            // Where rounding decides: a finite float, or the midpoint to the next one up in
+            // magnitude (FLT_MAX's: halfway to 2^128), moved by -2..2 double steps, either sign.
+            uint32_t fb = uint32_t(bits) & 0x7FFFFFFFu;
+            if ((fb >> 23) == 0xFFu) fb &= 0x7F7FFFFFu;  // inf / NaN: a finite exponent instead
+            const float f = bits_to_float(fb);          // finite, >= 0
+            const float up = bits_to_float(fb + 1u);     // +inf past FLT_MAX
+            double x = ((bits >> 32) & 1) == 0 ? double(f)
+                       : up == kInfinity       ? 0x1.ffffffp127
+                                               : 0.5 * (double(f) + double(up));  // exact
+            for (int k = int((bits >> 33) % 5) - 2; k != 0; k += k > 0 ? -1 : 1)
+                x = std::nextafter(x, k > 0 ? HUGE_VAL : -HUGE_VAL);
+            return ((bits >> 36) & 1) ? -x : x;
+        }
         default: {
             const uint64_t e = 1023u - 160u + g() % 330u;  // 2^-160 .. 2^169
             double x;

@@ -99,6 +99,7 @@ TEST(FloatRound, SignOfZeroAndTheEnds) {
     EXPECT_TRUE(same(float_round_up(0x1p-200), std::numeric_limits<float>::denorm_min()));
     EXPECT_TRUE(same(float_round_down(0x1p-200), 0.0f));
     EXPECT_TRUE(same(float_round_down(-0x1p-200), -std::numeric_limits<float>::denorm_min()));
+    EXPECT_TRUE(same(float_round_up(-0x1p-200), -0.0f));
     EXPECT_TRUE(same(float_round_down(0x1p128), kFltMax));
     EXPECT_TRUE(same(float_round_up(0x1p128), kInf));
     EXPECT_TRUE(same(float_round_down(-0x1p128), -kInf));

@@ -13,8 +13,10 @@
 //   float_round_down(x) = the largest float <= x  (FLT_MAX < x < inf: FLT_MAX; x < -FLT_MAX: -inf)
 //   float_round_up(x)   = the smallest float >= x (-inf < x < -FLT_MAX: -FLT_MAX; x > FLT_MAX: +inf)
 //   +-inf -> +-inf; NaN -> -inf (down) and +inf (up): never a bound that excludes anything.
-// On the device each is one conversion with the rounding mode in the instruction
-// (__double2float_rd/_ru: IEEE directed rounding, no flush to zero); on the host a
+// On the device each is one conversion with the rounding mode in the instruction (PTX
+// cvt.rm / cvt.rp.f32.f64, written out so that no build flag can add .ftz: with nvcc's
+// -ftz=true or --use_fast_math the __double2float_rd/_ru intrinsics become cvt...ftz, which
+// flushes a subnormal result to zero, inward for float_round_up(1e-40)); on the host a
 // conversion to nearest and at most one step, with the range checked first (converting
 // a double outside the float range is undefined behaviour in C++).
 #pragma once
@@ -61,7 +63,9 @@ CWBVH_HD CWBVH_INLINE float next_float_down(float f) {
 CWBVH_HD CWBVH_INLINE float float_round_down(double x) {
     if (!(x == x)) return -__builtin_huge_valf();
 #if defined(__CUDA_ARCH__)
-    return __double2float_rd(x);
+    float r;
+    asm("cvt.rm.f32.f64 %0, %1;" : "=f"(r) : "d"(x));
+    return r;
 #else
     if (x > float_round_detail::kFloatMax && x < __builtin_huge_val()) return float(float_round_detail::kFloatMax);
     if (x < -float_round_detail::kFloatMax) return -__builtin_huge_valf();
@@ -73,7 +77,9 @@ CWBVH_HD CWBVH_INLINE float float_round_down(double x) {
 CWBVH_HD CWBVH_INLINE float float_round_up(double x) {
     if (!(x == x)) return __builtin_huge_valf();
 #if defined(__CUDA_ARCH__)
-    return __double2float_ru(x);
+    float r;
+    asm("cvt.rp.f32.f64 %0, %1;" : "=f"(r) : "d"(x));
+    return r;
 #else
     if (x < -float_round_detail::kFloatMax && x > -__builtin_huge_val()) return -float(float_round_detail::kFloatMax);
     if (x > float_round_detail::kFloatMax) return __builtin_huge_valf();
