@@ -507,6 +507,33 @@ TEST(OpenMesh, ObjCommentAfterFaceDataIsReadRightOrRefused) {
 // read as a repeated face (exit 0). Two 'format' lines are refused; the check follows OpenMesh.
 // A word after end_header on its line is refused (OpenMesh read it as body data, with
 // uninitialised values: an error or a hang).
+// A file layout and what the importer must do with it: refuse it with `error` (the message
+// after "<path>: ", a prefix), or (error empty) load the two triangles of the unit square
+// (0,0,0) (1,0,0) (1,1,0) and (0,0,0) (1,1,0) (0,1,0), without warnings if asked.
+struct LayoutCase {
+    const char* name;
+    std::string text, error;
+};
+template <size_t N>
+void check_layouts(TempDir& dir, const LayoutCase (&cases)[N], bool no_warnings) {
+    for (const LayoutCase& c : cases) {
+        const std::string path = dir.write(c.name, c.text);
+        const auto r = import_files({path});
+        if (!c.error.empty()) {
+            ASSERT_FALSE(r.ok) << c.name;
+            EXPECT_EQ(r.error.rfind(path + ": " + c.error, 0), 0u) << c.name << ": " << r.error;
+            continue;
+        }
+        ASSERT_TRUE(r.ok) << c.name << ": " << r.error;
+        ASSERT_EQ(r.scene.triangle_count(), 2u) << c.name;
+        EXPECT_EQ(r.scene.triangle(0), (std::array<Vec3, 3>{Vec3{0, 0, 0}, Vec3{1, 0, 0}, Vec3{1, 1, 0}})) << c.name;
+        EXPECT_EQ(r.scene.triangle(1), (std::array<Vec3, 3>{Vec3{0, 0, 0}, Vec3{1, 1, 0}, Vec3{0, 1, 0}})) << c.name;
+        if (no_warnings) {
+            EXPECT_TRUE(r.warnings.empty()) << c.name << ": " << r.warnings.front();
+        }
+    }
+}
+
 // OpenMesh's PLY reader reads a list other than the faces' vertex_indices as one value,
 // drops face properties declared before vertex_indices (their values stay in the file), and
 // in ASCII reads coordinates with >> float and face counts and indices with >> unsigned,
@@ -517,11 +544,7 @@ TEST(OpenMesh, PlyLayoutsOpenMeshMisreadsAreRefused) {
     TempDir dir;
     const std::string vertex = "element vertex 4\nproperty float x\nproperty float y\nproperty float z\n";
     const std::string body_v = "0 0 0\n1 0 0\n1 1 0\n0 1 0\n";
-    struct Case {
-        const char* name;
-        std::string text, error;  // error: the message after "<path>: "; empty: accepted, 2 triangles
-    };
-    const Case cases[] = {
+    const LayoutCase cases[] = {
         {"texcoord_list.ply",
          "ply\nformat ascii 1.0\n" + vertex +
              "element face 2\nproperty list uchar int vertex_indices\nproperty list uchar float texcoord\nend_header\n" +
@@ -591,19 +614,7 @@ TEST(OpenMesh, PlyLayoutsOpenMeshMisreadsAreRefused) {
              body_v + "3 0 1 2\n3 0 2 3\n",
          ""},
     };
-    for (const Case& c : cases) {
-        const std::string path = dir.write(c.name, c.text);
-        const auto r = import_files({path});
-        if (!c.error.empty()) {
-            ASSERT_FALSE(r.ok) << c.name;
-            EXPECT_EQ(r.error.rfind(path + ": " + c.error, 0), 0u) << c.name << ": " << r.error;
-            continue;
-        }
-        ASSERT_TRUE(r.ok) << c.name << ": " << r.error;
-        ASSERT_EQ(r.scene.triangle_count(), 2u) << c.name;
-        EXPECT_EQ(r.scene.triangle(0), (std::array<Vec3, 3>{Vec3{0, 0, 0}, Vec3{1, 0, 0}, Vec3{1, 1, 0}})) << c.name;
-        EXPECT_EQ(r.scene.triangle(1), (std::array<Vec3, 3>{Vec3{0, 0, 0}, Vec3{1, 1, 0}, Vec3{0, 1, 0}})) << c.name;
-    }
+    check_layouts(dir, cases, /*no_warnings=*/false);
     // Binary: the same header rule (a face texcoord list: OpenMesh skips one entry's bytes).
     std::string bin = "ply\nformat binary_little_endian 1.0\n" + vertex +
                       "element face 1\nproperty list uchar int vertex_indices\nproperty list uchar float texcoord\n"
@@ -814,11 +825,7 @@ TEST(OpenMesh, OffHeaderLayoutsOpenMeshMisreadsAreRefused) {
     const std::string normals = "0 0 0 0 0 1\n1 0 0 0 0 1\n1 1 0 0 0 1\n0 1 0 0 0 1\n3 0 1 2\n3 0 2 3\n";
     const std::string colours = "0 0 0 255 0 0\n1 0 0 255 0 0\n1 1 0 255 0 0\n0 1 0 255 0 0\n3 0 1 2\n3 0 2 3\n";
     const std::string counts_on_line_1 = "OFF line 1: the counts are on the header line (";
-    struct Case {
-        const char* name;
-        std::string text, error;  // error: the message after "<path>: "; empty: accepted
-    };
-    const Case cases[] = {
+    const LayoutCase cases[] = {
         {"counts.off", "OFF 4 2 0\n" + body,
          counts_on_line_1 + "'OFF 4 2 0'), but OpenMesh's reader ignores the rest of that line and reads the counts "
                             "from the next one: put '4 2 0' on a line of its own"},
@@ -876,20 +883,7 @@ TEST(OpenMesh, OffHeaderLayoutsOpenMeshMisreadsAreRefused) {
         {"coff_face_colour.off",
          "COFF\n4 2 0\n0 0 0 255 0 0\n1 0 0 255 0 0\n1 1 0 255 0 0\n0 1 0 255 0 0\n3 0 1 2 9 9 9\n3 0 2 3 9 9 9\n", ""},
     };
-    for (const Case& c : cases) {
-        const std::string path = dir.write(c.name, c.text);
-        const auto r = import_files({path});
-        if (!c.error.empty()) {
-            ASSERT_FALSE(r.ok) << c.name;
-            EXPECT_EQ(r.error.rfind(path + ": " + c.error, 0), 0u) << c.name << ": " << r.error;
-            continue;
-        }
-        ASSERT_TRUE(r.ok) << c.name << ": " << r.error;
-        ASSERT_EQ(r.scene.triangle_count(), 2u) << c.name;
-        EXPECT_EQ(r.scene.triangle(0), (std::array<Vec3, 3>{Vec3{0, 0, 0}, Vec3{1, 0, 0}, Vec3{1, 1, 0}})) << c.name;
-        EXPECT_EQ(r.scene.triangle(1), (std::array<Vec3, 3>{Vec3{0, 0, 0}, Vec3{1, 1, 0}, Vec3{0, 1, 0}})) << c.name;
-        EXPECT_TRUE(r.warnings.empty()) << c.name << ": " << r.warnings.front();
-    }
+    check_layouts(dir, cases, /*no_warnings=*/true);
 }
 
 // One face whose last index ends the file, after a vertex line with more on it (ST texture
