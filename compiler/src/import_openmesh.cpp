@@ -184,6 +184,14 @@ std::string printable(std::string t) {
     return t;
 }
 
+/// A piece of the file for a message: blanks trimmed at both ends, cut at 48 characters,
+/// made printable, in single quotes.
+std::string excerpt(const std::string& t) {
+    const size_t b = t.find_first_not_of(" \t\r\n"), e = t.find_last_not_of(" \t\r\n");
+    const std::string s = b == std::string::npos ? std::string() : t.substr(b, e - b + 1);
+    return "'" + printable(s.size() > 48 ? s.substr(0, 48) + "..." : s) + "'";
+}
+
 /// Opens `path` for one of the header checks below (binary mode, so sizes
 /// and offsets are bytes); `size` gets the file's size. False: cannot open.
 bool open_for_check(const std::string& path, std::ifstream& f, uint64_t& size, std::string& error) {
@@ -301,24 +309,18 @@ bool check_obj(const std::string& path, std::string& error, DeclaredCounts& decl
     }
     f.clear();
     f.seekg(0);
-    // A UTF-8 byte order mark (EF BB BF): OpenMesh reads it as part of the first line's
-    // keyword, so a first line 'v ...' was dropped (every later index then named the next
-    // vertex: wrong geometry, no message). Refused unless that line is a comment or blank.
-    {
-        std::string first;
-        std::getline(f, first);
-        if (first.size() >= 3 && first.compare(0, 3, "\xef\xbb\xbf") == 0) {
-            const size_t start = first.find_first_not_of(" \t\r\n", 3);
-            if (start != std::string::npos && first[start] != '#') {
+    for (uint64_t number = 1; std::getline(f, line); ++number) {
+        // A UTF-8 byte order mark (EF BB BF): OpenMesh reads it as part of the first line's
+        // keyword, so a first line 'v ...' was dropped (every later index then named the next
+        // vertex: wrong geometry, no message). Refused unless that line is a comment or blank.
+        if (number == 1 && line.compare(0, 3, "\xef\xbb\xbf") == 0) {
+            const size_t start = line.find_first_not_of(" \t\r\n", 3);
+            if (start != std::string::npos && line[start] != '#') {
                 error = "OBJ file starts with a UTF-8 byte order mark, which OpenMesh's reader takes as part of line "
                         "1's keyword (it would drop that line and shift every later vertex index): remove the mark";
                 return false;
             }
         }
-        f.clear();
-        f.seekg(0);
-    }
-    for (uint64_t number = 1; std::getline(f, line); ++number) {
         const size_t start = line.find_first_not_of(" \t\r\n");
         if (start != std::string::npos) {
             const size_t end = line.find_last_not_of(" \t\r\n");  // a CR before `end` is inside the line
@@ -482,9 +484,8 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
                 }
                 std::string after;
                 if (in >> after) {
-                    error = "PLY header line " + std::to_string(n + 1) + ": 'end_header' is followed by '" +
-                            printable(after.size() > 48 ? after.substr(0, 48) + "..." : after) +
-                            "' (OpenMesh reads the body from right after the word end_header, so it would "
+                    error = "PLY header line " + std::to_string(n + 1) + ": 'end_header' is followed by " +
+                            excerpt(after) + " (OpenMesh reads the body from right after the word end_header, so it would "
                             "read this as data)";
                     return false;
                 }
@@ -679,8 +680,7 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
         return true;
     };
     auto unreadable = [&](const Element& el, uint64_t i, const Property& p, const std::string& word, Read how) {
-        error = "PLY " + el.name + " " + std::to_string(i) + ": '" +
-                printable(word.size() > 48 ? word.substr(0, 48) + "..." : word) + "' for property '" +
+        error = "PLY " + el.name + " " + std::to_string(i) + ": " + excerpt(word) + " for property '" +
                 printable(p.name) + "' is not " +
                 (how == Read::kFloat ? "a float number" : how == Read::kInt ? "an integer" : "an unsigned integer") +
                 " as OpenMesh's reader reads it (it would read this and every later value wrong)";
@@ -689,16 +689,22 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
     std::string token;
     for (size_t e = 0; e < elements.size(); ++e) {
         const Element& el = elements[e];
-        const bool read_by_openmesh = e < read_elements;
+        // How OpenMesh reads each property's values (a list's entries), decided once per element.
+        std::vector<Read> hows;
+        for (const Property& p : el.properties)
+            hows.push_back(e >= read_elements ? Read::kWord
+                           : p.list           ? (is_vertex_indices(el, p) ? Read::kUnsigned : Read::kWord)
+                                              : read_as(el, p));
         for (uint64_t i = 0; i < el.count; ++i) {
-            for (const Property& p : el.properties) {
+            for (size_t q = 0; q < el.properties.size(); ++q) {
+                const Property& p = el.properties[q];
+                const Read how = hows[q];
                 if (!p.list) {
                     if (!(f >> token)) {
                         error = "PLY file is truncated at " + el.name + " " + std::to_string(i) + " of " +
                                 std::to_string(el.count);
                         return false;
                     }
-                    const Read how = read_by_openmesh ? read_as(el, p) : Read::kWord;
                     if (!word_fits(token, how)) return unreadable(el, i, p, token, how);
                     continue;
                 }
@@ -716,7 +722,6 @@ bool check_ply(const std::string& path, std::string& error, DeclaredCounts& decl
                     error = "PLY " + el.name + " " + std::to_string(i) + ": " + face_too_large(k);
                     return false;
                 }
-                const Read how = read_by_openmesh && is_vertex_indices(el, p) ? Read::kUnsigned : Read::kWord;
                 for (uint64_t j = 0; j < k; ++j) {
                     if (!(f >> token)) {
                         error = "PLY file is truncated at " + el.name + " " + std::to_string(i) + " of " +
@@ -793,11 +798,7 @@ bool check_stl(const std::string& path, std::string& error, DeclaredCounts& decl
     auto lower = [](std::string& w) {
         for (char& c : w) c = char(std::tolower(static_cast<unsigned char>(c)));  // FACET, Vertex, ...
     };
-    auto quote = [](const std::string& t) {
-        const size_t b = t.find_first_not_of(" \t\r\n"), e = t.find_last_not_of(" \t\r\n");
-        const std::string s = b == std::string::npos ? std::string() : t.substr(b, e - b + 1);
-        return "'" + printable(s.size() > 48 ? s.substr(0, 48) + "..." : s) + "'";
-    };
+    const auto quote = excerpt;
     struct Vertex {
         float x[3];
         bool operator==(const Vertex& o) const { return std::memcmp(x, o.x, sizeof x) == 0; }
@@ -955,11 +956,7 @@ bool check_off(const std::string& path, std::string& error, DeclaredCounts& decl
     uint64_t size = 0;
     if (!open_for_check(path, f, size, error)) return false;
     declared = DeclaredCounts{};
-    auto quote = [](const std::string& t) {
-        const size_t b = t.find_first_not_of(" \t\r\n"), e = t.find_last_not_of(" \t\r\n");
-        const std::string s = b == std::string::npos ? std::string() : t.substr(b, e - b + 1);
-        return "'" + printable(s.size() > 48 ? s.substr(0, 48) + "..." : s) + "'";
-    };
+    const auto quote = excerpt;
     // Header flags as in _OFFReader_::can_u_read: [ST][C][N][4][n]OFF [BINARY].
     std::string first;
     std::getline(f, first);
