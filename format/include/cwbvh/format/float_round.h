@@ -24,21 +24,12 @@
 #include <cstdint>
 #include <cstring>
 
+#include "cwbvh/format/bits.h"
 #include "cwbvh/format/hostdevice.h"
 
 namespace cwbvh {
 
 namespace float_round_detail {
-CWBVH_HD CWBVH_INLINE uint32_t bits(float f) {
-    uint32_t u;
-    memcpy(&u, &f, sizeof u);
-    return u;
-}
-CWBVH_HD CWBVH_INLINE float from_bits(uint32_t u) {
-    float f;
-    memcpy(&f, &u, sizeof f);
-    return f;
-}
 inline constexpr double kFloatMax = 3.4028234663852886e38;  // FLT_MAX, exact in double
 }  // namespace float_round_detail
 
@@ -47,16 +38,16 @@ inline constexpr double kFloatMax = 3.4028234663852886e38;  // FLT_MAX, exact in
 /// +inf stays +inf, -inf -> -FLT_MAX, NaN stays NaN.
 CWBVH_HD CWBVH_INLINE float next_float_up(float f) {
     if (!(f == f) || f == __builtin_huge_valf()) return f;  // NaN, +inf
-    if (f == 0.0f) return float_round_detail::from_bits(1u);
-    const uint32_t u = float_round_detail::bits(f);
-    return float_round_detail::from_bits(f > 0.0f ? u + 1u : u - 1u);  // magnitude up / down
+    if (f == 0.0f) return bits_to_float(1u);
+    const uint32_t u = float_to_bits(f);
+    return bits_to_float(f > 0.0f ? u + 1u : u - 1u);  // magnitude up / down
 }
 /// The next float below f (nextDown): the mirror of next_float_up.
 CWBVH_HD CWBVH_INLINE float next_float_down(float f) {
     if (!(f == f) || f == -__builtin_huge_valf()) return f;  // NaN, -inf
-    if (f == 0.0f) return float_round_detail::from_bits(0x80000001u);
-    const uint32_t u = float_round_detail::bits(f);
-    return float_round_detail::from_bits(f > 0.0f ? u - 1u : u + 1u);
+    if (f == 0.0f) return bits_to_float(0x80000001u);
+    const uint32_t u = float_to_bits(f);
+    return bits_to_float(f > 0.0f ? u - 1u : u + 1u);
 }
 
 /// The largest float <= x (see the top of the file).

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <cstring>
 
+#include "cwbvh/format/bits.h"
 #include "cwbvh/format/hostdevice.h"
 
 /// Full unrolling of small constant loops in device code, so that arrays indexed by
@@ -31,17 +32,7 @@ namespace cwbvh {
 inline constexpr float kInfinity = __builtin_huge_valf();
 inline constexpr float kFloatMin = 1.17549435e-38f;  ///< FLT_MIN = 2^-126
 
-/// The bits of `from` as a To of the same size (memcpy: no aliasing rule broken; a
-/// register move after optimization).
-template <class To, class From>
-CWBVH_HD CWBVH_INLINE To bit_cast_to(const From& from) {
-    static_assert(sizeof(To) == sizeof(From), "bit_cast_to: sizes differ");
-    To to;
-    memcpy(&to, &from, sizeof to);
-    return to;
-}
-CWBVH_HD CWBVH_INLINE uint32_t float_to_bits(float f) { return bit_cast_to<uint32_t>(f); }
-CWBVH_HD CWBVH_INLINE float bits_to_float(uint32_t u) { return bit_cast_to<float>(u); }
+// bit_cast_to, float_to_bits, bits_to_float: cwbvh/format/bits.h (included above).
 /// True for NaN. Written on the bits so that no compiler flag can fold it away.
 CWBVH_HD CWBVH_INLINE bool is_nan_f(float x) { return (float_to_bits(x) & 0x7FFFFFFFu) > 0x7F800000u; }
 /// True for every value except +-inf and NaN.
