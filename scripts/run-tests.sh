@@ -3,7 +3,7 @@
 # then rebuilds with AddressSanitizer + UndefinedBehaviorSanitizer and runs the
 # tests again, then builds the libFuzzer targets (clang, ASan + UBSan), replays
 # the committed corpus through them and fuzzes each for CWBVH_FUZZ_SECONDS
-# (default 60; 4 targets). Set CWBVH_SKIP_SANITIZERS=1 to skip the ASan pass,
+# (default 60; 5 targets). Set CWBVH_SKIP_SANITIZERS=1 to skip the ASan pass,
 # CWBVH_SKIP_FUZZ=1 to skip the fuzz step.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -28,7 +28,7 @@ if [[ "${CWBVH_SKIP_SANITIZERS:-0}" != "1" ]]; then
 fi
 if [[ "${CWBVH_SKIP_FUZZ:-0}" != "1" ]]; then
   FUZZ_SECONDS="${CWBVH_FUZZ_SECONDS:-60}"
-  FUZZ_TARGETS=(validate bvh2 ray_file import)
+  FUZZ_TARGETS=(validate bvh2 ray_file import trace)
   echo "== libFuzzer (ASan + UBSan): committed corpus once, then ${FUZZ_SECONDS} s per target"
   CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCWBVH_FUZZ=ON \
         -DCWBVH_SANITIZE=ON -DCWBVH_CUDA=OFF -DCWBVH_BUILD_TESTS=OFF >/dev/null
@@ -37,12 +37,15 @@ if [[ "${CWBVH_SKIP_FUZZ:-0}" != "1" ]]; then
   mkdir -p build-fuzz/artifacts
   trap 'rm -rf "$FUZZ_WORK"' EXIT
   # Replay: every committed input once (no mutation), under ASan + UBSan.
-  build-fuzz/bin/cwbvh_fuzz_validate tests/fuzz/corpus/* 2>"$FUZZ_WORK/replay.log" ||
-    { tail -50 "$FUZZ_WORK/replay.log"; echo "corpus replay failed"; exit 1; }
+  for t in validate trace; do
+    build-fuzz/bin/cwbvh_fuzz_$t tests/fuzz/corpus/* 2>"$FUZZ_WORK/replay.log" ||
+      { tail -50 "$FUZZ_WORK/replay.log"; echo "corpus replay through cwbvh_fuzz_$t failed"; exit 1; }
+  done
   for t in "${FUZZ_TARGETS[@]}"; do
     mkdir -p "$FUZZ_WORK/$t"
   done
   cp tests/fuzz/corpus/* "$FUZZ_WORK/validate/"
+  cp tests/fuzz/corpus/* "$FUZZ_WORK/trace/"
   # Importer seeds (first byte picks the extension: 2 = .obj, 0 = .gltf).
   printf '\002v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n' >"$FUZZ_WORK/import/seed_obj"
   printf '\000{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}]}' \
@@ -51,7 +54,7 @@ if [[ "${CWBVH_SKIP_FUZZ:-0}" != "1" ]]; then
     # A crashing input is kept in build-fuzz/artifacts/ (the work folder is removed on exit).
     # lsan.supp: OpenMesh's once-per-process log stream (the importer target).
     if ! (cd "$FUZZ_WORK" && LSAN_OPTIONS=suppressions="$ROOT/tests/lsan.supp":print_suppressions=0 \
-            "$ROOT/build-fuzz/bin/cwbvh_fuzz_$t" -max_total_time="$FUZZ_SECONDS" -max_len=65536 \
+            "$ROOT/build-fuzz/bin/cwbvh_fuzz_$t" -max_total_time="$FUZZ_SECONDS" -max_len=65536 -timeout=30 \
             -rss_limit_mb=2048 -artifact_prefix="$ROOT/build-fuzz/artifacts/$t-" "$t" 2>"$t.log"); then
       tail -60 "$FUZZ_WORK/$t.log"
       echo "fuzz target cwbvh_fuzz_$t failed"
