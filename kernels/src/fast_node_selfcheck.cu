@@ -57,10 +57,27 @@ __global__ void fp16_kernel(const Fp16Case* in, Fp16Out* out, size_t n) {
     if (i < n) out[i] = run_case(in[i]);
 }
 
-__global__ void node_kernel(const CwbvhNode* nodes, const NodeRay* rays, const float* tmax, uint32_t frame_word,
-                            uint32_t* masks, size_t n) {
+// One (node, ray) pair on the device: the fast test with the host's NodeRay, and the per-ray
+// set-up and the reference test from the Ray itself, as the kernels run them.
+struct NodeOut {
+    uint32_t fast;     ///< intersect_node_fast with the host-built NodeRay
+    uint32_t ref;      ///< the reference arithmetic (make_node_ray alone: no fast bit)
+    NodeRay set_up;    ///< make_node_ray + enable_fast_node_test on the device
+};
+
+CWBVH_HD NodeOut run_pair(const NodeWords& node, const NodeRay& host_ray, const Ray& ray, const NodeScale& sc) {
+    NodeOut o;
+    o.fast = intersect_node_fast(node, host_ray, ray.tmax, sc.frame_word);
+    o.ref = intersect_node_dispatch(node, make_node_ray(ray), ray.tmin, ray.tmax, sc.frame_word);
+    o.set_up = make_node_ray(ray);
+    enable_fast_node_test(o.set_up, sc, ray.dir, ray.tmin);
+    return o;
+}
+
+__global__ void node_kernel(const CwbvhNode* nodes, const NodeRay* node_rays, const Ray* rays, NodeScale sc,
+                            NodeOut* out, size_t n) {
     const size_t i = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
-    if (i < n) masks[i] = intersect_node_fast(load_node_words(nodes + i), rays[i], tmax[i], frame_word);
+    if (i < n) out[i] = run_pair(load_node_words(nodes + i), node_rays[i], rays[i], sc);
 }
 
 // Device buffers freed on scope exit.
@@ -83,6 +100,7 @@ bool to_device(const std::vector<T>& v, Buffer<T>& d, FastNodeSelfCheck& r) {
 }
 
 uint16_t any_half(std::mt19937_64& g) {
+    if (g() % 16 == 0) return g() % 2 ? 0x8000u : 0x0000u;  // +-0: min(+0, -0) is -0 (PTX min)
     for (;;) {
         uint16_t h = uint16_t(g());
         if (g() % 3 == 0) h &= 0x83FFu;  // subnormal
@@ -185,7 +203,24 @@ FastNodeSelfCheck run_fast_node_selfcheck(const CwbvhNode* nodes, size_t node_co
         k.c = uint32_t(any_half(g)) | (uint32_t(any_half(g)) << 16);
         k.x = any_float(g);
         k.y = any_float(g);
-        k.z = g() % 4 == 0 ? -k.x * k.y : any_float(g);  // cancellation
+        switch (g() % 8) {
+            case 0:
+            case 1: k.z = -k.x * k.y; break;  // cancellation
+            case 2:
+                // Exact zeros, whose sign the rounding direction decides (-0 for RD, IEEE 754
+                // 6.3): short significands make x*y a float, so x*y + (-x*y) = 0; x - x = 0.
+                k.x = bits_to_float(float_to_bits(k.x) & 0xFFFF0000u);
+                k.y = bits_to_float(float_to_bits(k.y) & 0xFFFF0000u);
+                k.z = g() % 2 ? -k.x * k.y : k.x;
+                break;
+            case 3: {  // signed zero terms: +0 + -0 is -0 only under RD
+                const float zeros[2] = {0.0f, -0.0f};
+                if (g() % 2) k.x = zeros[g() % 2];
+                k.z = zeros[g() % 2];
+                break;
+            }
+            default: k.z = any_float(g);
+        }
         k.w = any_double(g);
         k.o = any_float(g);
         k.d = any_float(g);  // a quarter subnormal: segment_reach's double path
@@ -215,35 +250,50 @@ FastNodeSelfCheck run_fast_node_selfcheck(const CwbvhNode* nodes, size_t node_co
     const FastNodePairs fp = make_fast_node_pairs(nodes, node_count, seed, node_pairs);
     const std::vector<CwbvhNode>& pn = fp.nodes;
     const std::vector<NodeRay>& pr = fp.node_rays;
-    std::vector<float> pt(fp.rays.size());
-    for (size_t i = 0; i < pt.size(); ++i) pt[i] = fp.rays[i].tmax;
     const NodeScale& sc = fp.scale;
-    std::vector<uint32_t> masks(pn.size());
+    std::vector<NodeOut> got(pn.size());
     if (!pn.empty()) {
         Buffer<CwbvhNode> d_nodes;  // cudaMalloc: 256-byte aligned, so every node is 16-byte aligned
-        Buffer<NodeRay> d_rays;
-        Buffer<float> d_tmax;
-        Buffer<uint32_t> d_masks;
-        if (!to_device(pn, d_nodes, r) || !to_device(pr, d_rays, r) || !to_device(pt, d_tmax, r) ||
-            !ok(cudaMalloc(reinterpret_cast<void**>(&d_masks.p), masks.size() * sizeof(uint32_t)), r))
+        Buffer<NodeRay> d_node_rays;
+        Buffer<Ray> d_rays;
+        Buffer<NodeOut> d_out;
+        if (!to_device(pn, d_nodes, r) || !to_device(pr, d_node_rays, r) || !to_device(fp.rays, d_rays, r) ||
+            !ok(cudaMalloc(reinterpret_cast<void**>(&d_out.p), got.size() * sizeof(NodeOut)), r))
             return r;
-        node_kernel<<<unsigned((pn.size() + 127) / 128), 128>>>(d_nodes.p, d_rays.p, d_tmax.p, sc.frame_word,
-                                                                 d_masks.p, pn.size());
+        node_kernel<<<unsigned((pn.size() + 127) / 128), 128>>>(d_nodes.p, d_node_rays.p, d_rays.p, sc, d_out.p,
+                                                                 pn.size());
         if (!ok(cudaGetLastError(), r) ||
-            !ok(cudaMemcpy(masks.data(), d_masks.p, masks.size() * sizeof(uint32_t), cudaMemcpyDeviceToHost), r))
+            !ok(cudaMemcpy(got.data(), d_out.p, got.size() * sizeof(NodeOut), cudaMemcpyDeviceToHost), r))
             return r;
     }
+    // Before sm_80 the device set-up never enables the fast test (enable_fast_node_test), so
+    // its NodeRay differs from the host's by design there.
+    cudaDeviceProp prop{};
+    if (!ok(cudaGetDeviceProperties(&prop, 0), r)) return r;
+    const bool fast_set_up = prop.major >= 8;
     r.node_pairs = pn.size();
     for (size_t i = 0; i < pn.size(); ++i) {
-        const uint32_t want = intersect_node_fast(pn[i], pr[i], pt[i], sc.frame_word);
-        r.node_pairs_hit += want != 0;
-        if (masks[i] == want) continue;
+        const NodeOut want = run_pair(load_node_words(&pn[i]), pr[i], fp.rays[i], sc);
+        r.node_pairs_hit += want.fast != 0;
+        const bool fast = got[i].fast == want.fast, ref = got[i].ref == want.ref,
+                   set_up = !fast_set_up || std::memcmp(&got[i].set_up, &want.set_up, sizeof(NodeRay)) == 0;
+        if (fast && ref && set_up) continue;
         ++r.node_mismatches;
-        if (r.differences.size() < FastNodeSelfCheck::kReported)
+        if (r.differences.size() >= FastNodeSelfCheck::kReported) continue;
+        const std::string ray = "Ray " + hex_bytes(&fp.rays[i], sizeof(Ray));
+        if (!fast)
             r.differences.push_back("intersect_node_fast(node " + hex_bytes(&pn[i], sizeof pn[i]) + ", NodeRay " +
-                                    hex_bytes(&pr[i], sizeof pr[i]) + ", tmax " + hex32(float_to_bits(pt[i])) +
-                                    ", frame_word " + hex32(sc.frame_word) + "): device " + hex32(masks[i]) +
-                                    ", host " + hex32(want));
+                                    hex_bytes(&pr[i], sizeof pr[i]) + ", tmax " + hex32(float_to_bits(fp.rays[i].tmax)) +
+                                    ", frame_word " + hex32(sc.frame_word) + "): device " + hex32(got[i].fast) +
+                                    ", host " + hex32(want.fast));
+        if (!ref)
+            r.differences.push_back("intersect_node reference(node " + hex_bytes(&pn[i], sizeof pn[i]) + ", " + ray +
+                                    "): device " + hex32(got[i].ref) + ", host " + hex32(want.ref));
+        if (!set_up)
+            r.differences.push_back("make_node_ray + enable_fast_node_test(" + ray + ", frame_word " +
+                                    hex32(sc.frame_word) + "): device NodeRay " +
+                                    hex_bytes(&got[i].set_up, sizeof(NodeRay)) + ", host " +
+                                    hex_bytes(&want.set_up, sizeof(NodeRay)));
     }
     r.ran = true;
     return r;

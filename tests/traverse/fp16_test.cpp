@@ -161,20 +161,47 @@ float directed(f128 v, int mode) {
     return f;
 }
 
+// RD (mode -1) or RU (+1) of the exact a*b + c, with the sign IEEE 754 (6.3) gives an exact
+// zero, as the device's FFMA.RM/RP and FADD.RM/RP do: -0 under RD unless the product and c
+// are both +0; +0 under RU unless both are -0.
+float directed_fma(float a, float b, float c, int mode) {
+    // Exact: the bits of a*b + c span at most 2^21 .. 2^-66 here, under 113.
+    const f128 exact = f128(a) * f128(b) + f128(c);
+    if (exact != 0) return directed(exact, mode);
+    const bool p_neg = std::signbit(a) != std::signbit(b), c_neg = std::signbit(c);
+    return mode < 0 ? (!p_neg && !c_neg ? 0.0f : -0.0f) : (p_neg && c_neg ? -0.0f : 0.0f);
+}
+
+// Bit for bit, so that the sign of a zero counts (the GPU self-check compares bits).
 TEST(Fp16, FloatFmaAndSumsRoundDownAndUp) {
     std::mt19937_64 g(5);
     for (int i = 0; i < 300000; ++i) {
-        const float a = random_float(g, -10, 10), b = random_float(g, -10, 10);
+        float a = random_float(g, -10, 10), b = random_float(g, -10, 10);
         float c = random_float(g, -20, 20);
         if (i % 3 == 0) c = -float(double(a) * double(b));  // cancellation
-        // Exact: the bits of a*b + c span at most 2^21 .. 2^-66, under 113.
-        const f128 exact = f128(a) * f128(b) + f128(c);
-        ASSERT_EQ(fma_rd(a, b, c), directed(exact, -1)) << a << " " << b << " " << c;
-        ASSERT_EQ(fma_ru(a, b, c), directed(exact, +1)) << a << " " << b << " " << c;
-        const f128 diff = f128(a) - f128(c), sum = f128(a) + f128(c);
-        ASSERT_EQ(sub_rd(a, c), directed(diff, -1)) << a << " " << c;
-        ASSERT_EQ(add_ru(a, c), directed(sum, +1)) << a << " " << c;
+        if (i % 5 == 1) {  // exact zeros: short significands make a*b a float; a - a
+            a = bits_to_float(float_to_bits(a) & 0xFFFF0000u);
+            b = bits_to_float(float_to_bits(b) & 0xFFFF0000u);
+            c = i % 2 ? -a * b : a;
+        }
+        if (i % 7 == 2) c = (i % 2) ? -0.0f : 0.0f;  // signed zero terms
+        if (i % 11 == 3) a = (i % 2) ? -0.0f : 0.0f;
+        ASSERT_EQ(float_to_bits(fma_rd(a, b, c)), float_to_bits(directed_fma(a, b, c, -1))) << a << " " << b << " " << c;
+        ASSERT_EQ(float_to_bits(fma_ru(a, b, c)), float_to_bits(directed_fma(a, b, c, +1))) << a << " " << b << " " << c;
+        ASSERT_EQ(float_to_bits(sub_rd(a, c)), float_to_bits(directed_fma(a, 1.0f, -c, -1))) << a << " " << c;
+        ASSERT_EQ(float_to_bits(add_ru(a, c)), float_to_bits(directed_fma(a, 1.0f, c, +1))) << a << " " << c;
     }
+    // Exact zeros by hand (IEEE 754 6.3).
+    const uint32_t kMinusZero = 0x80000000u;
+    EXPECT_EQ(float_to_bits(fma_rd(1.0f, 1.0f, -1.0f)), kMinusZero);
+    EXPECT_EQ(float_to_bits(sub_rd(0.5f, 0.5f)), kMinusZero);
+    EXPECT_EQ(float_to_bits(sub_rd(0.0f, 0.0f)), kMinusZero);  // +0 - +0 = +0 + -0
+    EXPECT_EQ(float_to_bits(sub_rd(0.0f, -0.0f)), 0u);         // +0 + +0
+    EXPECT_EQ(float_to_bits(fma_rd(0.0f, 1.0f, -0.0f)), kMinusZero);
+    EXPECT_EQ(float_to_bits(fma_rd(0.0f, 1.0f, 0.0f)), 0u);
+    EXPECT_EQ(float_to_bits(fma_ru(1.0f, 1.0f, -1.0f)), 0u);
+    EXPECT_EQ(float_to_bits(fma_ru(-0.0f, 1.0f, -0.0f)), kMinusZero);
+    EXPECT_EQ(float_to_bits(add_ru(0.0f, -0.0f)), 0u);
     // x = 1025 - 2^-46 needs 57 bits: a plain double sum rounds it to 1025, a float
     // boundary, and RD would keep 1025 (double rounding); round-to-odd keeps the sticky bit.
     const float a = 1.0f + std::ldexp(1.0f, -23), b = 1.0f - std::ldexp(1.0f, -23);
@@ -190,6 +217,8 @@ TEST(Fp16, PairedMinCompareAndIntegerMaxMin) {
     // Lane-wise, low half first, as the device orders a half2.
     const uint32_t a = fp16_host::pair(0x3C00u /*1*/, 0xC000u /*-2*/), b = fp16_host::pair(0x4000u /*2*/, 0x8000u /*-0*/);
     EXPECT_EQ(h2_min(a, b), fp16_host::pair(0x3C00u, 0xC000u));
+    // PTX min counts -0 below +0, whichever operand it is.
+    EXPECT_EQ(h2_min(fp16_host::pair(0x0000u, 0x8000u), fp16_host::pair(0x8000u, 0x0000u)), fp16_host::pair(0x8000u, 0x8000u));
     bool lo = false, hi = false;
     h2_le(a, b, lo, hi);
     EXPECT_TRUE(lo);

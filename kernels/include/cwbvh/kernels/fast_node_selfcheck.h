@@ -4,7 +4,9 @@
 // kernel emulation and the node test's contract test (tests/traverse) run. Generated
 // cases: operand bit patterns for the half and directed-rounding operations (doubles of
 // every exponent for the conversions), and
-// (node, ray) pairs from a scene's own nodes with rays that take the fast test.
+// (node, ray) pairs from a scene's own nodes with rays that take the fast test; for each
+// pair also the reference node test and the per-ray set-up (make_node_ray +
+// enable_fast_node_test, its NodeRay byte for byte on sm_80 and later) on the device.
 // cwbvh_gpu_check runs it on every GPU check (a mismatch fails the check), the gpu
 // test area when a device is present. CUDA builds only (cwbvh_cuda).
 #pragma once
@@ -26,8 +28,9 @@ struct FastNodeSelfCheck {
     uint64_t node_pairs_hit = 0;    ///< pairs with a nonzero mask (the rays reach children)
     /// The first kReported differing cases, one line each, enough to rerun them on the
     /// host without a GPU: the operation, its operands' bits, the device's and the
-    /// host's result bits; for a node pair the node's 80 bytes, the NodeRay's bytes,
-    /// tmax and the scene's frame word in hex.
+    /// host's result bits; for a node pair the node's 80 bytes, the NodeRay's or the Ray's
+    /// bytes, tmax and the scene's frame word in hex (node_mismatches counts the pairs where
+    /// the fast mask, the reference mask or the set-up's NodeRay differ).
     static constexpr size_t kReported = 8;
     std::vector<std::string> differences;
 };

@@ -64,6 +64,17 @@ inline float float_directed(double x, int mode) {
     return mode < 0 ? float_round_down(x) : mode > 0 ? float_round_up(x) : float(x);
 }
 
+/// RD(a * b + c) to float, as FFMA.RM and FADD.RM round (a, b, c floats). An exact zero
+/// takes the sign IEEE 754 (6.3) gives it under roundTowardNegative: -0, unless the product
+/// and c are both +0. The double sum rounds to nearest, where that zero is +0: without this,
+/// fma_rd(1, 1, -1) and sub_rd(x, x) were +0 on the host and -0 on the device. (Round-up
+/// needs nothing: there an exact zero is +0 unless both terms are -0, as in the double sum.)
+inline float fma_down(double a, double b, double c) {
+    const double r = fma_round_to_odd(a, b, c);  // 0 only for an exact zero (float terms)
+    if (r == 0.0) return !std::signbit(a * b) && !std::signbit(c) ? 0.0f : -0.0f;
+    return float_directed(r, -1);
+}
+
 /// x rounded to binary16 bits: mode 0 to nearest even, -1 down, +1 up.
 inline uint16_t half_from_double(double x, int mode) {
     if (std::isnan(x)) return 0x7E00u;
@@ -120,7 +131,7 @@ CWBVH_HD CWBVH_INLINE float fma_rd(float a, float b, float c) {
 #if defined(__CUDA_ARCH__)
     return __fmaf_rd(a, b, c);
 #else
-    return fp16_host::float_directed(fp16_host::fma_round_to_odd(a, b, c), -1);
+    return fp16_host::fma_down(a, b, c);
 #endif
 }
 CWBVH_HD CWBVH_INLINE float fma_ru(float a, float b, float c) {
@@ -136,7 +147,7 @@ CWBVH_HD CWBVH_INLINE float sub_rd(float a, float b) {
 #if defined(__CUDA_ARCH__)
     return __fsub_rd(a, b);
 #else
-    return fp16_host::float_directed(fp16_host::fma_round_to_odd(a, 1.0, -double(b)), -1);
+    return fp16_host::fma_down(a, 1.0, -double(b));
 #endif
 }
 CWBVH_HD CWBVH_INLINE float add_ru(float a, float b) {
@@ -199,14 +210,19 @@ CWBVH_HD CWBVH_INLINE uint32_t h2_fma(uint32_t a, uint32_t b, uint32_t c) {
     return pair(r[0], r[1]);
 #endif
 }
-/// Lane-wise minimum (HMNMX2; no NaN operands here; for +-0 either zero).
+/// Lane-wise minimum (HMNMX2; no NaN operands here; -0 counts below +0, as in PTX min).
 CWBVH_HD CWBVH_INLINE uint32_t h2_min(uint32_t a, uint32_t b) {
 #if defined(__CUDA_ARCH__)
     return fp16_device::bits(__hmin2(fp16_device::h2(a), fp16_device::h2(b)));
 #else
     using namespace fp16_host;
     uint16_t r[2];
-    for (int i = 0; i < 2; ++i) r[i] = half_to_double(lane(b, i)) < half_to_double(lane(a, i)) ? lane(b, i) : lane(a, i);
+    // PTX min: (a < b) ? a : b with -0 < +0, so min(+0, -0) is -0 either way round.
+    for (int i = 0; i < 2; ++i) {
+        const uint16_t x = lane(a, i), y = lane(b, i);
+        const double dx = half_to_double(x), dy = half_to_double(y);
+        r[i] = dy < dx || (dy == dx && (y & 0x8000u) != 0) ? y : x;
+    }
     return pair(r[0], r[1]);
 #endif
 }
