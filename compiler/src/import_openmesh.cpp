@@ -29,6 +29,7 @@
 #include <fstream>
 #include <iostream>
 #include <mutex>
+#include <set>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -1077,12 +1078,16 @@ bool check_off(const std::string& path, std::string& error, DeclaredCounts& decl
         const std::streamoff counts_end = f.tellg();
         std::string tail;
         std::getline(f, tail);
+        const std::streamoff vertices_start = f.tellg();
+        std::string counts(size_t(counts_end - start), '\0');
+        f.clear();
+        f.seekg(start);
+        f.read(&counts[0], std::streamsize(counts.size()));
+        number += uint64_t(std::count(counts.begin(), counts.end(), '\n'));  // the line the counts end on
+        f.clear();
+        if (vertices_start >= 0) f.seekg(vertices_start);
+        else f.seekg(0, std::ios::end), f.get();  // the counts' line ended the file
         if (tail.find_first_not_of(blanks) != std::string::npos) {
-            std::string counts(size_t(counts_end - start), '\0');
-            f.clear();
-            f.seekg(start);
-            f.read(&counts[0], std::streamsize(counts.size()));
-            number += uint64_t(std::count(counts.begin(), counts.end(), '\n'));
             error = "OFF line " + std::to_string(number) + ": " + quote(tail) + " after the vertex/face/edge counts " +
                     std::to_string(nv) + " " + std::to_string(nf) + " " + std::to_string(ne) + ": OpenMesh's reader "
                     "would read it as the first vertex (the counts must be three numbers alone on their line)";
@@ -1095,13 +1100,36 @@ bool check_off(const std::string& path, std::string& error, DeclaredCounts& decl
         return false;
     }
     declared.faces = nf;
+    // Vertices: OpenMesh reads 3 numbers (6 with normals) with >>, over line ends, then skips the
+    // rest of the line. A line with fewer numbers takes the missing ones from the next line,
+    // whose rest is skipped: that vertex is wrong and every later one shifts by a line, without
+    // a message. Refused, naming the line (blank lines between vertices, which >> skips, are fine).
     float x = 0;
     std::string rest;
+    const int need = normal ? 6 : 3;
     for (unsigned int i = 0; i < nv; ++i) {
-        if (f.eof()) return short_file("vertex", i, nv);
-        for (int c = 0; c < (normal ? 6 : 3); ++c) f >> x;
-        if (f.fail()) return short_file("vertex", i, nv);
-        std::getline(f, rest);
+        bool got = false;
+        while (!got && std::getline(f, line)) {
+            ++number;
+            got = line.find_first_not_of(blanks) != std::string::npos;
+        }
+        if (!got) return short_file("vertex", i, nv);
+        std::istringstream numbers(line);
+        int read = 0;
+        while (read < need && numbers >> x) ++read;
+        if (read < need) {
+            const std::string where = "OFF line " + std::to_string(number) + ": vertex " + std::to_string(i) + " (" +
+                                      quote(line) + ") ";
+            numbers.clear();
+            std::string word;
+            error = numbers >> word
+                        ? where + "has " + quote(word) + " where OpenMesh's reader reads number " +
+                              std::to_string(read + 1) + " of its " + std::to_string(need)
+                        : where + "has " + std::to_string(read) + " of the " + std::to_string(need) +
+                              " numbers OpenMesh's reader reads for it (it would read on into the next line and "
+                              "shift every later vertex)";
+            return false;
+        }
     }
     for (unsigned int i = 0; i < nf; ++i) {
         unsigned int k = 0, idx = 0;
@@ -1195,6 +1223,12 @@ Result import_openmesh(const std::string& path, const ImportOptions& options, Ra
         if (!om_lines.empty()) error += " (" + om_lines.back() + ")";  // its last word: the reason
         return bad(error);
     }
+    // OpenMesh's PLY reader parses the header twice (once to decide it can read the file), so
+    // each of its header messages comes twice: a message is reported once, where it first came.
+    std::set<std::string> seen;
+    om_lines.erase(std::remove_if(om_lines.begin(), om_lines.end(),
+                                  [&](const std::string& m) { return !seen.insert(m).second; }),
+                   om_lines.end());
     constexpr size_t kMaxReaderLines = 5;
     for (size_t i = 0; i < om_lines.size() && i < kMaxReaderLines; ++i)
         warnings.push_back("OpenMesh: " + om_lines[i]);

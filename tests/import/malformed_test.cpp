@@ -70,7 +70,8 @@ TEST(Malformed, OffTruncatedOrGarbageBodyIsAnError) {
         {"OFF\n3 2000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "OFF header declares 3 vertices and 2000 faces"},
         {"OFF\n3 20 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "at face 1 of 20"},
         {"OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n", "at vertex 3 of 4"},
-        {"OFF\n3 1 0\n0 0 zz\n1 0 0\n0 1 0\n3 0 1 2\n", "at vertex 0 of 3"},
+        {"OFF\n3 1 0\n0 0 zz\n1 0 0\n0 1 0\n3 0 1 2\n",
+         "OFF line 3: vertex 0 ('0 0 zz') has 'zz' where OpenMesh's reader reads number 3 of its 3"},
         {"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n", "at face 0 of 1"},
         {"OFF\n3\n", "OFF header has missing or invalid"},
     };

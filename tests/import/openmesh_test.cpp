@@ -713,7 +713,7 @@ TEST(OpenMesh, PlyFormatIsTheOneOpenMeshReads) {
 // OpenMesh's messages become our warnings ("OpenMesh: ...") and never reach stderr raw:
 // omlog() writes to std::clog (the PLY header's "Unsupported keyword : foo"), the OFF reader
 // to std::cerr directly (a COFF vertex with 7 colour values); omerr() (an OBJ's unknown
-// material) was captured before. std::cerr is ours again after the read.
+// material) was captured before. std::cerr is ours again after the read. Each message once.
 TEST(OpenMesh, ReaderMessagesAreWarningsNotRawStderr) {
     TempDir dir;
     struct Case {
@@ -740,9 +740,10 @@ TEST(OpenMesh, ReaderMessagesAreWarningsNotRawStderr) {
         EXPECT_EQ(raw, "ours\nours too\n") << c.name;
         ASSERT_TRUE(r.ok) << c.name << ": " << r.error;
         EXPECT_EQ(r.scene.triangle_count(), 1u) << c.name;
-        bool warned = false;
-        for (const std::string& w : r.warnings) warned |= w == path + ": " + c.warning;
-        EXPECT_TRUE(warned) << c.name << ": " << ::testing::PrintToString(r.warnings);
+        // Once: OpenMesh parses a PLY header twice, and said each header word twice.
+        int warned = 0;
+        for (const std::string& w : r.warnings) warned += w == path + ": " + c.warning ? 1 : 0;
+        EXPECT_EQ(warned, 1) << c.name << ": " << ::testing::PrintToString(r.warnings);
     }
 }
 
@@ -865,8 +866,20 @@ TEST(OpenMesh, OffHeaderLayoutsOpenMeshMisreadsAreRefused) {
          "OFF line 7: face 0 has '# first' after its 3 vertex indices"},
         {"face_extra_last.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3 1\n",
          "OFF line 8: face 1 has '1' after its 3 vertex indices"},
+        // A vertex line short of numbers: OpenMesh takes the rest from the next line and skips
+        // that line's rest, so every later vertex shifts (here with a spare line at the end, so
+        // that the shifted read still ends without running out of faces).
+        {"short_vertex.off", "OFF\n4 2 0\n0 0 0\n1 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n3 0 1 2\n",
+         "OFF line 4: vertex 1 ('1 0') has 2 of the 3 numbers OpenMesh's reader reads for it (it would read on into "
+         "the next line and shift every later vertex)"},
+        {"short_normal.off", "NOFF\n4 2 0\n" + normals.substr(0, 12) + "1 0 0 0 0\n" + normals.substr(24),
+         "OFF line 4: vertex 1 ('1 0 0 0 0') has 5 of the 6 numbers"},
+        {"vertex_comment.off", "OFF\n4 2 0\n0 0 0\n# next\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n",
+         "OFF line 4: vertex 1 ('# next') has '#' where OpenMesh's reader reads number 1 of its 3"},
+        {"counts_no_newline.off", "OFF\n4 2 0", "OFF file is truncated or unparsable at vertex 0 of 4"},
         // Read right: accepted.
         {"plain.off", "OFF\n4 2 0\n" + body, ""},
+        {"vertex_blank_lines.off", "OFF\n4 2 0\n0 0 0\n\n1 0 0\n \n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n", ""},
         {"blank_lines.off", "OFF\n\n \t\n4 2 0\n" + body, ""},
         {"header_comment.off", "OFF # made by hand\n4 2 0\n" + body, ""},
         {"header_word.off", "OFF ascii\n4 2 0\n" + body, ""},
