@@ -277,18 +277,21 @@ FastNodeSelfCheck run_fast_node_selfcheck(const CwbvhNode* nodes, size_t node_co
         r.node_pairs_hit += want.fast != 0;
         const bool fast = got[i].fast == want.fast, ref = got[i].ref == want.ref,
                    set_up = !fast_set_up || std::memcmp(&got[i].set_up, &want.set_up, sizeof(NodeRay)) == 0;
-        if (fast && ref && set_up) continue;
+        const std::string ray = fast && ref && set_up ? std::string() : "Ray " + hex_bytes(&fp.rays[i], sizeof(Ray));
+        if (!ref) {
+            ++r.reference_differences;
+            if (r.reference_lines.size() < FastNodeSelfCheck::kReported)
+                r.reference_lines.push_back("intersect_node reference(node " + hex_bytes(&pn[i], sizeof pn[i]) + ", " +
+                                            ray + "): device " + hex32(got[i].ref) + ", host " + hex32(want.ref));
+        }
+        if (fast && set_up) continue;
         ++r.node_mismatches;
         if (r.differences.size() >= FastNodeSelfCheck::kReported) continue;
-        const std::string ray = "Ray " + hex_bytes(&fp.rays[i], sizeof(Ray));
         if (!fast)
             r.differences.push_back("intersect_node_fast(node " + hex_bytes(&pn[i], sizeof pn[i]) + ", NodeRay " +
                                     hex_bytes(&pr[i], sizeof pr[i]) + ", tmax " + hex32(float_to_bits(fp.rays[i].tmax)) +
                                     ", frame_word " + hex32(sc.frame_word) + "): device " + hex32(got[i].fast) +
                                     ", host " + hex32(want.fast));
-        if (!ref)
-            r.differences.push_back("intersect_node reference(node " + hex_bytes(&pn[i], sizeof pn[i]) + ", " + ray +
-                                    "): device " + hex32(got[i].ref) + ", host " + hex32(want.ref));
         if (!set_up)
             r.differences.push_back("make_node_ray + enable_fast_node_test(" + ray + ", frame_word " +
                                     hex32(sc.frame_word) + "): device NodeRay " +

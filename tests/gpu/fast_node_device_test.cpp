@@ -20,6 +20,7 @@ TEST(FastNodeDevice, MatchesTheHostEmulationBitForBit) {
     for (const std::string& d : r.differences) ADD_FAILURE() << "differs: " << d;
     EXPECT_EQ(r.fp16_mismatches, 0u) << "of " << r.fp16_cases;
     EXPECT_EQ(r.node_mismatches, 0u) << "of " << r.node_pairs;
+    EXPECT_TRUE(r.reference_within_contraction()) << r.reference_differences << " of " << r.node_pairs;
     EXPECT_GT(r.node_pairs, 100000u);
     EXPECT_GT(r.node_pairs_hit, r.node_pairs / 20);  // the rays reach children
 }
