@@ -7,7 +7,9 @@
 //     file's node_scale (as DeviceScene::upload computes it for the GPU);
 //   - the warp model (warp_model.h): the GPU kernels' own lane code under their warp rules
 //     (postponing, the shared stack and its spill, dynamic fetch), CWBVH and BVH2;
-//   - the BVH2 traversal over BVH2 and BV2L, and the two-level traversal (format 1.2).
+//   - the BVH2 traversal over BVH2 and BV2L, and the two-level traversal (format 1.2);
+//   - the inline query a renderer calls (query.h, over a SceneView with the fast test's
+//     constants), whose TRIS record and INST index the caller reads: both must be in range.
 // What must hold on every validated file:
 //   - no crash, no hang (libFuzzer's -timeout), nothing ASan or UBSan reports;
 //   - no kBadIndex and no kStackOverflow (depth <= 32, rule 5113: the CPU stack holds 64);
@@ -26,6 +28,7 @@
 #include "cwbvh/format/validate.h"
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/kernels/node_intersect_fast.h"
+#include "cwbvh/kernels/query.h"
 #include "cwbvh/kernels/traverse.h"
 #include "cwbvh/kernels/warp_model.h"
 #include "fuzz_file.h"
@@ -160,6 +163,25 @@ void compare(const char* who, const std::vector<Hit>& ref, const std::vector<Hit
     }
 }
 
+/// The inline query (query.h) over `view`: the same answers as `ref` (the traversal it wraps,
+/// with the same constants), a TRIS record that holds the hit's prim, an INST index in range.
+void check_query(const FileSections& f, const SceneView& view, const std::vector<Ray>& rays,
+                 const std::vector<Hit>& ref, bool deep_ok) {
+    for (size_t i = 0; i < rays.size(); ++i) {
+        const QueryHit q = intersect(view, rays[i]);
+        if (q.status == TraceStatus::kBadIndex || q.status == TraceStatus::kStackOverflow) fail("query status", i);
+        if (q.hit.prim == kMissPrim) {
+            if (q.record != kInvalidIndex || q.instance != kInvalidIndex) fail("query: a miss with a record", i);
+        } else {
+            if (q.record >= f.tris.size() || f.tris[q.record].prim != q.hit.prim) fail("query: record", i);
+            if (view.two_level() ? q.instance >= f.instances.size() : q.instance != kInvalidIndex)
+                fail("query: instance", i);
+        }
+        if (deep_ok && !same_closest(ref[i], q.hit)) fail("query: answer differs from the reference", i);
+        if (occluded(view, rays[i]) != (q.hit.prim != kMissPrim) && deep_ok) fail("query: occluded", i);
+    }
+}
+
 void trace_single_level(const FileSections& f, const std::vector<Ray>& rays, bool deep_ok) {
     const size_t n = rays.size();
     std::vector<Hit> ref(n), hits(n);
@@ -170,6 +192,13 @@ void trace_single_level(const FileSections& f, const std::vector<Ray>& rays, boo
     trace_nodes<TriangleTest::kWatertight, HitMode::kClosest>(f, scale, rays, hits, st);
     check("fast node test", rays, hits, st, f.stored);
     if (deep_ok) compare("fast node test", ref, hits, false);
+    SceneView view{};
+    view.sections.nodes = f.nodes.data();
+    view.sections.node_count = uint32_t(f.nodes.size());
+    view.sections.tris = f.tris.data();
+    view.sections.tri_count = uint32_t(f.tris.size());
+    view.sections.node_scale = scale;
+    check_query(f, view, rays, ref, deep_ok);
     trace_nodes<TriangleTest::kWatertight, HitMode::kAny>(f, scale, rays, hits, st);
     check("fast node test, any hit", rays, hits, st, f.stored);
     if (deep_ok) compare("fast node test, any hit", ref, hits, true);
@@ -223,6 +252,7 @@ void trace_two_level(const FileSections& f, const std::vector<Ray>& rays, bool d
     (void)trace_two_level_cpu(scene, rays.data(), hits.data(), inst.data(), n, co);
     check("two-level, fast node test", rays, hits, st, f.stored);
     if (deep_ok) compare("two-level, fast node test", ref, hits, false);
+    check_query(f, SceneView{scene}, rays, ref, deep_ok);
 }
 
 }  // namespace
