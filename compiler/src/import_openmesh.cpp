@@ -1100,35 +1100,41 @@ bool check_off(const std::string& path, std::string& error, DeclaredCounts& decl
         return false;
     }
     declared.faces = nf;
-    // Vertices: OpenMesh reads 3 numbers (6 with normals) with >>, over line ends, then skips the
-    // rest of the line. A line with fewer numbers takes the missing ones from the next line,
-    // whose rest is skipped: that vertex is wrong and every later one shifts by a line, without
-    // a message. Refused, naming the line (blank lines between vertices, which >> skips, are fine).
+    // Vertices: OpenMesh reads 3 numbers (6 with normals) with >>, over line ends and blank
+    // lines, then skips the rest of the line the last one was on. A vertex spread over lines
+    // ("0 0" then "0") therefore reads right, unless the line it ends on holds more: OpenMesh
+    // drops that rest, so that vertex takes numbers of the next one and every later vertex
+    // shifts, without a message ("1 0" then "1 1 0"). Refused, naming the line; so is a word
+    // that is not a number, where OpenMesh's >> fails.
     float x = 0;
     std::string rest;
     const int need = normal ? 6 : 3;
     for (unsigned int i = 0; i < nv; ++i) {
-        bool got = false;
-        while (!got && std::getline(f, line)) {
-            ++number;
-            got = line.find_first_not_of(blanks) != std::string::npos;
-        }
-        if (!got) return short_file("vertex", i, nv);
-        std::istringstream numbers(line);
         int read = 0;
-        while (read < need && numbers >> x) ++read;
-        if (read < need) {
+        uint64_t begun = 0;  // the line the vertex starts on
+        while (read < need) {
+            if (!std::getline(f, line)) return short_file("vertex", i, nv);
+            ++number;
+            if (line.find_first_not_of(blanks) == std::string::npos) continue;
+            if (begun == 0) begun = number;
+            std::istringstream numbers(line);
+            while (read < need && numbers >> x) ++read;
             const std::string where = "OFF line " + std::to_string(number) + ": vertex " + std::to_string(i) + " (" +
                                       quote(line) + ") ";
-            numbers.clear();
             std::string word;
-            error = numbers >> word
-                        ? where + "has " + quote(word) + " where OpenMesh's reader reads number " +
-                              std::to_string(read + 1) + " of its " + std::to_string(need)
-                        : where + "has " + std::to_string(read) + " of the " + std::to_string(need) +
-                              " numbers OpenMesh's reader reads for it (it would read on into the next line and "
-                              "shift every later vertex)";
-            return false;
+            if (read < need) {
+                numbers.clear();
+                if (numbers >> word) {
+                    error = where + "has " + quote(word) + " where OpenMesh's reader reads number " +
+                            std::to_string(read + 1) + " of its " + std::to_string(need);
+                    return false;
+                }
+            } else if (begun != number && numbers >> word) {
+                error = where + "ends the vertex begun on line " + std::to_string(begun) + " and holds more (" +
+                        quote(word) + "...), which OpenMesh's reader drops: that vertex and every later one would "
+                        "be read shifted (one vertex a line)";
+                return false;
+            }
         }
     }
     for (unsigned int i = 0; i < nf; ++i) {

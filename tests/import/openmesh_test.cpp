@@ -870,16 +870,19 @@ TEST(OpenMesh, OffHeaderLayoutsOpenMeshMisreadsAreRefused) {
         // that line's rest, so every later vertex shifts (here with a spare line at the end, so
         // that the shifted read still ends without running out of faces).
         {"short_vertex.off", "OFF\n4 2 0\n0 0 0\n1 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n3 0 1 2\n",
-         "OFF line 4: vertex 1 ('1 0') has 2 of the 3 numbers OpenMesh's reader reads for it (it would read on into "
-         "the next line and shift every later vertex)"},
+         "OFF line 5: vertex 1 ('1 1 0') ends the vertex begun on line 4 and holds more ('1'...), which OpenMesh's "
+         "reader drops: that vertex and every later one would be read shifted (one vertex a line)"},
         {"short_normal.off", "NOFF\n4 2 0\n" + normals.substr(0, 12) + "1 0 0 0 0\n" + normals.substr(24),
-         "OFF line 4: vertex 1 ('1 0 0 0 0') has 5 of the 6 numbers"},
+         "OFF line 5: vertex 1 ('1 1 0 0 0 1') ends the vertex begun on line 4"},
         {"vertex_comment.off", "OFF\n4 2 0\n0 0 0\n# next\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n",
          "OFF line 4: vertex 1 ('# next') has '#' where OpenMesh's reader reads number 1 of its 3"},
         {"counts_no_newline.off", "OFF\n4 2 0", "OFF file is truncated or unparsable at vertex 0 of 4"},
         // Read right: accepted.
         {"plain.off", "OFF\n4 2 0\n" + body, ""},
         {"vertex_blank_lines.off", "OFF\n4 2 0\n0 0 0\n\n1 0 0\n \n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n", ""},
+        // A vertex over several lines, nothing after its last number: OpenMesh reads it right.
+        {"coordinate_a_line.off", "OFF\n4 2 0\n0\n0\n0\n1\n0\n0\n1\n1\n0\n0\n1\n0\n3 0 1 2\n3 0 2 3\n", ""},
+        {"wrapped_vertex.off", "OFF\n4 2 0\n0 0\n0\n1 0 0\n1 1\n\n0\n0 1 0\n3 0 1 2\n3 0 2 3\n", ""},
         {"blank_lines.off", "OFF\n\n \t\n4 2 0\n" + body, ""},
         {"header_comment.off", "OFF # made by hand\n4 2 0\n" + body, ""},
         {"header_word.off", "OFF ascii\n4 2 0\n" + body, ""},
