@@ -266,11 +266,13 @@ FastNodeSelfCheck run_fast_node_selfcheck(const CwbvhNode* nodes, size_t node_co
             !ok(cudaMemcpy(got.data(), d_out.p, got.size() * sizeof(NodeOut), cudaMemcpyDeviceToHost), r))
             return r;
     }
-    // Before sm_80 the device set-up never enables the fast test (enable_fast_node_test), so
-    // its NodeRay differs from the host's by design there.
-    cudaDeviceProp prop{};
-    if (!ok(cudaGetDeviceProperties(&prop, 0), r)) return r;
-    const bool fast_set_up = prop.major >= 8;
+    // Code compiled for an architecture before sm_80 never enables the fast test
+    // (enable_fast_node_test), so its NodeRay differs from the host's by design there. What
+    // counts is the code the kernel runs (PTX of compute_75 JIT-compiled on a newer GPU is
+    // still sm_75 code), not the device.
+    cudaFuncAttributes fa{};
+    if (!ok(cudaFuncGetAttributes(&fa, node_kernel), r)) return r;
+    const bool fast_set_up = fa.ptxVersion >= 80;
     r.node_pairs = pn.size();
     for (size_t i = 0; i < pn.size(); ++i) {
         const NodeOut want = run_pair(load_node_words(&pn[i]), pr[i], fp.rays[i], sc);

@@ -2,6 +2,7 @@
 // fuzz_trace.cpp): resealing mutated bytes, and copying a section out of them.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <vector>
@@ -71,6 +72,16 @@ struct FileSections {
           stored(source_range_total(ranges)) {}
 
     bool two_level() const { return !meshes.empty(); }
+
+    /// Whether some stored triangle has more than one TRIS record (spatial splits).
+    /// (Sorted copies of the prims: nothing is sized by the file's PMAP total.)
+    bool has_split_triangles() const {
+        std::vector<uint32_t> prims;
+        prims.reserve(tris.size());
+        for (const TriangleRecord& t : tris) prims.push_back(t.prim);
+        std::sort(prims.begin(), prims.end());
+        return std::adjacent_find(prims.begin(), prims.end()) != prims.end();
+    }
 
     /// Runs every deep check that applies (D1-D7); true when all pass. They size tables by
     /// counts from the file (the PMAP total: issue 21 finding 1), so they are fuzzed too.
