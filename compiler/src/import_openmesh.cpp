@@ -1107,8 +1107,36 @@ bool check_off(const std::string& path, std::string& error, DeclaredCounts& decl
     // shifts, without a message ("1 0" then "1 1 0"). Refused, naming the line; so is a word
     // that is not a number, where OpenMesh's >> fails.
     float x = 0;
-    std::string rest;
+    std::string rest, word;
+    std::istringstream numbers;  // one stream for every line that needs it
     const int need = normal ? 6 : 3;
+    // Counts the plain decimal words of `line` (sign, digits, at most one point, no exponent,
+    // under 39 integer digits: words >> reads into a float without fail) into `read` until it
+    // reaches `need`; `more`: a word follows the last one needed. False when a word before
+    // that is not plain: the stream decides then, as OpenMesh's >> does.
+    auto scan_plain = [&](int& read, bool& more) {
+        size_t at = 0;
+        while (read < need && (at = line.find_first_not_of(blanks, at)) != std::string::npos) {
+            size_t k = at + (line[at] == '+' || line[at] == '-' ? 1 : 0), digits = 0, whole = 0;
+            bool point = false;
+            for (; k < line.size() && std::strchr(blanks, line[k]) == nullptr; ++k) {
+                const char c = line[k];
+                if (c >= '0' && c <= '9') {
+                    ++digits;
+                    whole += point ? 0 : 1;
+                } else if (c == '.' && !point) {
+                    point = true;
+                } else {
+                    return false;
+                }
+            }
+            if (digits == 0 || whole >= 39) return false;
+            ++read;
+            at = k;
+        }
+        more = read == need && line.find_first_not_of(blanks, at) != std::string::npos;
+        return true;
+    };
     for (unsigned int i = 0; i < nv; ++i) {
         int read = 0;
         uint64_t begun = 0;  // the line the vertex starts on
@@ -1117,20 +1145,33 @@ bool check_off(const std::string& path, std::string& error, DeclaredCounts& decl
             ++number;
             if (line.find_first_not_of(blanks) == std::string::npos) continue;
             if (begun == 0) begun = number;
-            std::istringstream numbers(line);
-            while (read < need && numbers >> x) ++read;
-            const std::string where = "OFF line " + std::to_string(number) + ": vertex " + std::to_string(i) + " (" +
-                                      quote(line) + ") ";
-            std::string word;
-            if (read < need) {
+            auto where = [&] {
+                return "OFF line " + std::to_string(number) + ": vertex " + std::to_string(i) + " (" + quote(line) + ") ";
+            };
+            const int before = read;
+            bool more = false;
+            if (!scan_plain(read, more)) {
+                read = before;
                 numbers.clear();
-                if (numbers >> word) {
-                    error = where + "has " + quote(word) + " where OpenMesh's reader reads number " +
+                numbers.str(line);
+                std::streampos word_at = 0;  // where the word >> stopped at begins (it consumes "1e39")
+                while (read < need && (word_at = numbers.tellg(), numbers >> x)) ++read;
+                numbers.clear();
+                if (read < need) numbers.seekg(word_at);
+                const bool word_left = bool(numbers >> word);
+                if (read < need && word_left) {
+                    error = where() + "has " + quote(word) + " where OpenMesh's reader reads number " +
                             std::to_string(read + 1) + " of its " + std::to_string(need);
                     return false;
                 }
-            } else if (begun != number && numbers >> word) {
-                error = where + "ends the vertex begun on line " + std::to_string(begun) + " and holds more (" +
+                more = read == need && word_left;
+            }
+            if (more && begun != number) {
+                // The word after the last number, for the message.
+                std::istringstream rest_of(line);
+                for (int w = 0; w < need - before && rest_of >> word;) ++w;
+                rest_of >> word;
+                error = where() + "ends the vertex begun on line " + std::to_string(begun) + " and holds more (" +
                         quote(word) + "...), which OpenMesh's reader drops: that vertex and every later one would "
                         "be read shifted (one vertex a line)";
                 return false;
@@ -1154,11 +1195,15 @@ bool check_off(const std::string& path, std::string& error, DeclaredCounts& decl
         // more on the face's line (a face colour, which Geomview allows in any OFF file; a
         // comment) becomes the next face's vertex count and indices. Refused, naming the line.
         if (f.eof()) break;  // the last index ended the file: nothing follows on its line
-        const std::streamoff at = f.tellg();
         rest.clear();
         std::getline(f, rest);
-        if (at >= 0 && rest.find_first_not_of(blanks) != std::string::npos) {
+        if (rest.find_first_not_of(blanks) != std::string::npos) {
+            // Where the rest began, for the line number: found here, not by a tellg per face
+            // (which was two thirds of a 700k-face OFF import).
+            const bool newline = !f.eof();
             f.clear();
+            const std::streamoff end = newline ? std::streamoff(f.tellg()) : std::streamoff(size);
+            const std::streamoff at = std::max<std::streamoff>(0, end - std::streamoff(rest.size()) - (newline ? 1 : 0));
             f.seekg(0);
             std::string before(size_t(at), '\0');
             f.read(&before[0], std::streamsize(before.size()));

@@ -877,11 +877,17 @@ TEST(OpenMesh, OffHeaderLayoutsOpenMeshMisreadsAreRefused) {
         {"vertex_comment.off", "OFF\n4 2 0\n0 0 0\n# next\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n",
          "OFF line 4: vertex 1 ('# next') has '#' where OpenMesh's reader reads number 1 of its 3"},
         {"counts_no_newline.off", "OFF\n4 2 0", "OFF file is truncated or unparsable at vertex 0 of 4"},
+        // Words the plain scan leaves to the stream: an exponent beyond float, a hex float.
+        {"vertex_overflow.off", "OFF\n4 2 0\n0 0 0\n1e39 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n",
+         "OFF line 4: vertex 1 ('1e39 0 0') has '1e39' where OpenMesh's reader reads number 1 of its 3"},
+        {"face_extra_no_newline.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3 1",
+         "OFF line 8: face 1 has '1' after its 3 vertex indices"},
         // Read right: accepted.
         {"plain.off", "OFF\n4 2 0\n" + body, ""},
         {"vertex_blank_lines.off", "OFF\n4 2 0\n0 0 0\n\n1 0 0\n \n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n", ""},
         // A vertex over several lines, nothing after its last number: OpenMesh reads it right.
         {"coordinate_a_line.off", "OFF\n4 2 0\n0\n0\n0\n1\n0\n0\n1\n1\n0\n0\n1\n0\n3 0 1 2\n3 0 2 3\n", ""},
+        {"exponent_vertices.off", "OFF\n4 2 0\n0e0 +0 -0.\n1E0 0 0.0e+0\n1 1.0 .0\n0 1 0\n3 0 1 2\n3 0 2 3\n", ""},
         {"wrapped_vertex.off", "OFF\n4 2 0\n0 0\n0\n1 0 0\n1 1\n\n0\n0 1 0\n3 0 1 2\n3 0 2 3\n", ""},
         {"blank_lines.off", "OFF\n\n \t\n4 2 0\n" + body, ""},
         {"header_comment.off", "OFF # made by hand\n4 2 0\n" + body, ""},
