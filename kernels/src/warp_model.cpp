@@ -59,6 +59,7 @@ public:
     /// Returns false when the warp has exited (no rays left for it).
     bool turn(RayCounter& counter) {
         if (need_refill_) {
+            write_ended();
             refill(counter);
             if (active_count() == 0) return !exhausted_;  // all fetched rays invalid: fetch again
             need_refill_ = false;
@@ -80,10 +81,12 @@ public:
 private:
     struct Lane {
         bool active = false;
+        bool ended = false;  ///< the ray ended; its hit is written at the next refill (the kernel's state word)
         uint32_t ray_id = 0;
         CwbvhLane<kTest> l{Ray{{0, 0, 0}, 0, {1, 1, 1}, 0}};
         ModelStack stack;
         float u = 0.0f, v = 0.0f;  ///< of the closest hit so far (the kernel's shared s_uv)
+        float tlo = 0.0f;          ///< the lane's tlo (CwbvhLane::hit_deferred; the kernel's s_tlo)
     };
 
     int active_count() const {
@@ -116,6 +119,7 @@ private:
                 continue;
             }
             lane.l = CwbvhLane<kTest>(ray, scale_);  // the kernel's node tests, fast path included
+            lane.tlo = lane.l.tmax;
             lane.stack.clear();
             lane.active = true;
             lane_work += o_.refill_instructions;
@@ -123,14 +127,53 @@ private:
     }
 
     void finish(Lane& lane, TraceStatus status) {
-        Hit h = make_miss();
-        if (lane.l.hit_tri != kNoTriangle) h = Hit{lane.l.tmax, lane.u, lane.v, tris_[lane.l.hit_tri].prim};  // as the kernel
-        hits_[lane.ray_id] = h;
-        s_.hits += h.prim != kMissPrim;
         s_.stack_overflows += status == TraceStatus::kStackOverflow;
         s_.bad_indices += status == TraceStatus::kBadIndex;
         lane.active = false;
-        lane.stack.clear();
+        lane.ended = true;
+    }
+
+    /// Refill time: the rays that ended get their hits, the deferred ones finished first
+    /// (finalize_hit), all lanes together, as in the kernel.
+    void write_ended() {
+        int finishing = 0;
+        for (Lane& lane : lanes_) {
+            if (!lane.ended) continue;
+            Hit h = make_miss();
+            if (lane.l.hit_tri != kNoTriangle) {
+                if (lane.l.hit_deferred(lane.tlo)) {
+                    TriangleHit th;
+                    if (!finalize_hit(lane.l, lane.tlo, HostWholeTest<kTest>{&lane.l, tris_}, th)) ++s_.finalize_failures;
+                    lane.u = th.u;
+                    lane.v = th.v;
+                    ++finishing;
+                }
+                h = Hit{lane.l.tmax, lane.u, lane.v, tris_[lane.l.hit_tri].prim};  // as the kernel
+            }
+            hits_[lane.ray_id] = h;
+            s_.hits += h.prim != kMissPrim;
+            lane.ended = false;
+            lane.stack.clear();
+        }
+        if (finishing) {
+            ++s_.warp_finalize_steps;
+            s_.lane_finalized += uint64_t(finishing);
+        }
+    }
+
+    /// Whether the kernel's watertight test, as it is, gets past its two float stages to the
+    /// double-precision path (edge signs agree, T not certainly outside [tmin, tmax]).
+    static bool passes_float_stages(const Lane& lane, const TriangleRecord& t, float tmax) {
+        if constexpr (kTest == TriangleTest::kWatertight) {
+            WatertightRay w = lane.l.tri_test.w;
+            for (int a = 0; a < 3; ++a) w.org[a] = lane.l.nray.org[a];
+            WatertightEdges e;
+            return watertight_edges(w, t.v0, t.v1, t.v2, e) &&
+                   !watertight_range_miss(w, t.v0, t.v1, t.v2, lane.l.tmin, tmax);
+        } else {
+            (void)lane, (void)t, (void)tmax;
+            return false;
+        }
     }
 
     void iterate() {
@@ -170,7 +213,7 @@ private:
             int wanting = 0;
             for (const Lane& lane : lanes_) wanting += lane.active && lane.l.wants_triangles();
             if (wanting == 0) break;
-            int testing = 0;
+            int testing = 0, whole_lanes = 0;
             for (Lane& lane : lanes_) {
                 if (!(lane.active && lane.l.wants_triangles())) continue;
                 if (o_.postpone && should_postpone(wanting, active_before, lane.l.has_node_work(), o_.postpone_percent,
@@ -180,17 +223,42 @@ private:
                     continue;
                 }
                 const uint32_t ti = next_triangle(lane.l, tri_count_);
+                const float tmax_before = lane.l.tmax;
                 if (ti == kNoTriangle) {
                     finish(lane, TraceStatus::kBadIndex);
                     continue;
                 }
                 ++testing;
                 TriangleHit th;
-                if (test_triangle(lane.l, tris_[ti], ti, th)) {
+                PrevHit prev_state = PrevHit::kNone;
+                TriangleStep step;
+                if (o_.defer_hits) {
+                    step = test_triangle_deferred(lane.l, lane.tlo, tris_[ti], ti, HostWholeTest<kTest>{&lane.l, tris_},
+                                                  th, prev_state);
+                } else {  // the kernel as it is
+                    step = test_triangle(lane.l, tris_[ti], ti, th) ? TriangleStep::kExact : TriangleStep::kWholeMiss;
+                    lane.tlo = lane.l.tmax;
+                }
+                if (step == TriangleStep::kExact || prev_state != PrevHit::kNone) {
                     lane.u = th.u;
                     lane.v = th.v;
-                    if (kMode == HitMode::kAny) finish(lane, TraceStatus::kOk);
                 }
+                s_.lane_prev_finished += prev_state != PrevHit::kNone;
+                s_.finalize_failures += prev_state == PrevHit::kFailed;
+                s_.lane_deferred_hits += step == TriangleStep::kDeferred;
+                // The whole test ran: float could not decide (watertight; the fast test is all
+                // float). Without defer_hits: every test that passed the float stages.
+                if (kTest == TriangleTest::kWatertight) {
+                    if (o_.defer_hits)
+                        whole_lanes += step == TriangleStep::kExact || step == TriangleStep::kWholeMiss;
+                    else
+                        whole_lanes += passes_float_stages(lane, tris_[ti], tmax_before);
+                }
+                if (kMode == HitMode::kAny && is_hit(step)) finish(lane, TraceStatus::kOk);
+            }
+            if (whole_lanes) {
+                ++s_.warp_whole_rounds;
+                s_.lane_whole_tests += uint64_t(whole_lanes);
             }
             if (testing) {
                 ++s_.warp_tri_steps;

@@ -53,6 +53,35 @@ TEST(WarpModel, CwbvhHitsEqualTheReferenceForEveryQueryAndTest) {
     }
 }
 
+// Deferred hits (cwbvh_lane.h, test_triangle_deferred): the double-precision distance of
+// a hit float proves the closest so far waits until the warp refills. The answers stay the
+// reference's bit for bit (t, u, v, prim; ties aside), closest and any hit, under several
+// schedules; the whole test never contradicts a deferral; and most hits are deferred.
+TEST(WarpModel, DeferredHitsGiveTheReferencesHits) {
+    const Fixture& f = fixture();
+    for (HitMode mode : {HitMode::kClosest, HitMode::kAny}) {
+        for (uint32_t warps : {1u, 8u, 64u}) {
+            SCOPED_TRACE(testing::Message() << "mode " << int(mode) << " warps " << warps);
+            WarpModelOptions o;
+            o.mode = mode;
+            o.warps = warps;
+            o.defer_hits = true;
+            std::vector<Hit> hits;
+            const WarpModelStats s = run(f, o, hits);
+            expect_same_hits(hits, reference(f, mode, TriangleTest::kWatertight), mode);
+            EXPECT_EQ(s.finalize_failures, 0u);
+            EXPECT_GT(s.lane_deferred_hits, s.hits / 2) << "most hits are decided in float";
+            EXPECT_LT(s.lane_whole_tests * 10, s.lane_deferred_hits) << "the double path became rare";
+            EXPECT_EQ(s.lane_finalized + s.lane_prev_finished <= s.lane_deferred_hits, true);
+            o.defer_hits = false;
+            std::vector<Hit> plain;
+            const WarpModelStats k = run(f, o, plain);
+            EXPECT_EQ(k.lane_deferred_hits, 0u);
+            EXPECT_GT(k.lane_whole_tests, s.lane_whole_tests);
+        }
+    }
+}
+
 TEST(WarpModel, PoliciesChangeTheScheduleNotTheAnswers) {
     const Fixture& f = fixture();
     const std::vector<Hit> ref = reference(f, HitMode::kClosest, TriangleTest::kWatertight);

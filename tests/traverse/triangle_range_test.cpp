@@ -52,7 +52,34 @@ struct Tally {
     uint64_t far_decided = 0;  ///< rejected with tmax <= T (1 - 1024u): the stage's reach
     uint64_t far_cases = 0;
     uint64_t conflicts = 0;  ///< the stage rejected, the whole test (double path) accepted
+    // watertight_range_interval (the deferred hits of cwbvh_lane.h):
+    uint64_t interval_verdict_differs = 0;  ///< its kMiss differs from watertight_range_miss
+    uint64_t interval_inside = 0;           ///< kInside with agreeing, nonzero edge signs
+    uint64_t interval_wrong = 0;            ///< ... where the whole test missed or its t left [lo, hi]
 };
+
+/// watertight_range_interval on the same range: its kMiss is watertight_range_miss's
+/// answer, and where it says kInside (and the edge signs agree, all nonzero: what
+/// test_triangle_deferred also requires) the whole test, with tmax = hi and with the
+/// range's own tmax, hits at a t in [lo, hi], tmin <= lo and hi <= tmax.
+void check_interval(const WatertightRay& w, const float* v0, const float* v1, const float* v2, float tmin,
+                    float tmax, bool miss, Tally& tally) {
+    float lo = NAN, hi = NAN;
+    const RangeVerdict v = watertight_range_interval(w, v0, v1, v2, tmin, tmax, tmax, lo, hi);
+    if ((v == RangeVerdict::kMiss) != miss) ++tally.interval_verdict_differs;
+    WatertightEdges e;
+    if (v != RangeVerdict::kInside || !watertight_edges(w, v0, v1, v2, e) || e.eu == 0 || e.ev == 0 || e.ew == 0)
+        return;
+    ++tally.interval_inside;
+    TriangleHit a{}, b{};
+    const bool ha = intersect_triangle_watertight(w, v0, v1, v2, tmin, hi, a);
+    const bool hb = intersect_triangle_watertight(w, v0, v1, v2, tmin, tmax, b);
+    if (!(ha && hb && a.t == b.t && lo <= a.t && a.t <= hi && tmin <= lo && hi <= tmax && lo < hi)) {
+        if (++tally.interval_wrong <= 5)
+            std::printf("interval wrong: lo %.9g hi %.9g hit %d t %.9g, tmin %.9g tmax %.9g\n", double(lo), double(hi),
+                        int(ha), double(a.t), double(tmin), double(tmax));
+    }
+}
 
 /// Every range around T the stage could misjudge, both ends.
 void check_ranges(const Ray& ray, const float* v0, const float* v1, const float* v2, Tally& tally) {
@@ -83,6 +110,7 @@ void check_ranges(const Ray& ray, const float* v0, const float* v1, const float*
                     // host's whole test (stage skipped, double distance) rejects too.
                     TriangleHit th;
                     if (miss && intersect_triangle_watertight(w, v0, v1, v2, tmin, tmax, th)) ++tally.conflicts;
+                    check_interval(w, v0, v1, v2, tmin, tmax, miss, tally);
                     if (miss && inside) {
                         if (++tally.wrong <= 5)
                             std::printf("wrong reject: T %.17g tmin %.9g tmax %.9g\n", T, double(tmin), double(tmax));
@@ -134,6 +162,13 @@ TEST(TriangleRange, RejectsOnlyWhatLiesOutsideTheRange) {
                 (unsigned long long)tally.far_decided, (unsigned long long)tally.far_cases);
     EXPECT_EQ(tally.wrong, 0u);
     EXPECT_EQ(tally.conflicts, 0u);
+    std::printf("interval: kInside %llu, wrong %llu, kMiss differing from the stage %llu\n",
+                (unsigned long long)tally.interval_inside, (unsigned long long)tally.interval_wrong,
+                (unsigned long long)tally.interval_verdict_differs);
+    EXPECT_EQ(tally.interval_wrong, 0u);
+    EXPECT_EQ(tally.interval_verdict_differs, 0u);
+    // Deferring must be worth it: most ranges that hold T with room to spare are decided.
+    EXPECT_GT(tally.interval_inside, tally.cases / 20);
     // The stage must be worth its instructions: it decides most ranges that end well
     // before T (a hit behind the closest one), not only the obvious ones.
     EXPECT_GT(tally.far_decided, tally.far_cases * 85 / 100);
@@ -166,6 +201,11 @@ TEST(TriangleRange, SliversGrazingRaysAndHugeOrTinyCoordinates) {
     EXPECT_EQ(tally.wrong, 0u);
     EXPECT_EQ(tally.conflicts, 0u);
     EXPECT_GT(tally.rejected, 0u);
+    std::printf("interval: kInside %llu, wrong %llu, kMiss differing from the stage %llu\n",
+                (unsigned long long)tally.interval_inside, (unsigned long long)tally.interval_wrong,
+                (unsigned long long)tally.interval_verdict_differs);
+    EXPECT_EQ(tally.interval_wrong, 0u);
+    EXPECT_EQ(tally.interval_verdict_differs, 0u);
 }
 
 TEST(TriangleRange, UndecidableInputsAreLeftToTheDoublePath) {

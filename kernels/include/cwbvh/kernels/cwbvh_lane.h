@@ -44,7 +44,12 @@ struct CwbvhLane {
     NodeRay nray;
     TriangleIntersector<kTest> tri_test;
     float tmin;
-    float tmax;           ///< current interval end = distance of the closest hit so far
+    /// Current interval end: the ray's tmax, or an upper bound of the closest hit's
+    /// distance (its exact distance once known). Node and triangle tests cull with it.
+    /// Its partner tlo, a lower bound of that distance (test_triangle_deferred), is not a
+    /// member: the kernel keeps it in shared memory (a register more spilled under the
+    /// 80-register cap), the warp model beside the lane.
+    float tmax;
     uint32_t hit_tri;     ///< TRIS index of the closest hit so far, kNoTriangle if none
     StackEntry node_group;
     StackEntry tri_group;
@@ -67,6 +72,10 @@ struct CwbvhLane {
 
     CWBVH_HD CWBVH_INLINE bool has_node_work() const { return node_group.hits > 0x00FFFFFFu; }
     CWBVH_HD CWBVH_INLINE bool wants_triangles() const { return tri_group.hits != 0; }
+    /// The closest hit so far is deferred (its t, u, v wait for finalize_hit), given the
+    /// lane's tlo: a lower bound of the hit's distance, equal to tmax when that is exact
+    /// or there is no hit (both the ray's tmax at the start), below it while deferred.
+    CWBVH_HD CWBVH_INLINE bool hit_deferred(float tlo) const { return tlo < tmax; }
 };
 
 /// Result of the first half of a node step.
@@ -148,6 +157,112 @@ template <TriangleTest kTest>
 CWBVH_HD CWBVH_INLINE bool test_triangle(CwbvhLane<kTest>& l, const TriangleRecord& tri, uint32_t ti) {
     TriangleHit th;
     return test_triangle(l, tri, ti, th);
+}
+
+/// Outcome of test_triangle_deferred.
+enum class TriangleStep : uint32_t {
+    kMiss = 0,       ///< no hit, decided in float (edge signs, or T certainly out of range)
+    kWholeMiss = 1,  ///< no hit, decided by the whole test (its double-precision path)
+    kDeferred = 2,   ///< a hit, certainly the closest so far; t, u, v wait for finalize_hit
+    kExact = 3,      ///< a hit with its t, u, v in th (the whole test ran)
+};
+/// A hit: kDeferred or kExact.
+CWBVH_HD CWBVH_INLINE bool is_hit(TriangleStep s) { return uint32_t(s) >= uint32_t(TriangleStep::kDeferred); }
+
+/// What test_triangle_deferred did with a deferred closest hit it had to finish.
+enum class PrevHit : uint32_t { kNone = 0, kFinished = 1, kFailed = 2 };
+
+/// The whole watertight test of TRIS[index] for lane l over [l.tmin, tmax], as the host
+/// runs it (`tris` in memory): the `whole` argument of finalize_hit and
+/// test_triangle_deferred. The kernel passes its own, which reads the triangle through the
+/// read-only cache and calls a function that is not inlined (traverse_gpu.h).
+template <TriangleTest kTest>
+struct HostWholeTest {
+    const CwbvhLane<kTest>* l;
+    const TriangleRecord* tris;
+    CWBVH_HD bool operator()(uint32_t index, float tmax, TriangleHit& th) const {
+        return l->tri_test.with_org(l->nray.org)(tris[index], l->tmin, tmax, th);
+    }
+};
+
+/// Finishes a deferred hit (l.hit_deferred(tlo)): the whole test on the hit's triangle
+/// (TRIS index l.hit_tri), which certainly passes (watertight_range_interval's kInside),
+/// gives its t, u, v; tmax and tlo become t. The kernel runs it for all lanes of a warp
+/// at once, at refill time (traverse_gpu.h). Returns the whole test's answer, which is
+/// true by watertight_range_interval's guarantee (the warp model counts any false:
+/// WarpModelStats::finalize_failures, which the tests hold at 0).
+template <TriangleTest kTest, class Whole>
+CWBVH_HD CWBVH_INLINE bool finalize_hit(CwbvhLane<kTest>& l, float& tlo, const Whole& whole, TriangleHit& th) {
+    th = TriangleHit{l.tmax, 0.0f, 0.0f};
+    const bool hit = whole(l.hit_tri, l.tmax, th);
+    l.tmax = tlo = th.t;
+    return hit;
+}
+
+/// Triangle step, second half, as the GPU kernel runs it (issue 18): the watertight
+/// test's double-precision hit distance and its u, v are deferred while float alone
+/// proves the triangle the closest hit so far. Most triangles whose edge signs agree
+/// are hits (sponza_dabrovic nave, diffuse bounce 1: 403k of 407k past the float range
+/// stage), and the warp ran the double path in 73 % of its triangle rounds; a deferred
+/// hit costs a float interval, and the warp finishes its deferred hits together when it
+/// refills (3 % of the rounds and 0.08 refills a ray on that ray set: `cwbvh model`).
+///   - edge signs mixed, or T certainly outside [tmin, tmax]: kMiss;
+///   - all three edge functions nonzero and watertight_range_interval kInside (float t
+///     certainly in [lo, hi], tmin <= lo, hi <= tlo: closer than the closest hit, deferred
+///     or not): the new closest hit, deferred (tmax = hi, tlo = lo): kDeferred;
+///   - otherwise the whole test (`whole`: TRIS index, tmax -> hit, t, u, v) decides,
+///     against the exact distance of the closest hit so far: a deferred one is finished
+///     first (prev_state kFinished; kFailed if the whole test says no, which cannot happen
+///     and the warp model counts). kExact on a hit (tmax = tlo = t), kWholeMiss if not.
+/// th holds the t, u, v of the closest hit whenever the whole test found them: on kExact,
+/// and on kWholeMiss when a deferred hit was finished.
+/// The hit found is the reference's (traverse.h): a triangle is taken exactly when its
+/// float t is <= the exact t of the closest hit so far, as there; tmax >= that t at all
+/// times, so no node or triangle the reference tests is culled. The fast test (Moller-
+/// Trumbore, all float) has nothing to defer: it is test_triangle.
+template <TriangleTest kTest, class Whole>
+CWBVH_HD CWBVH_INLINE TriangleStep test_triangle_deferred(CwbvhLane<kTest>& l, float& tlo, const TriangleRecord& tri,
+                                                          uint32_t ti, const Whole& whole, TriangleHit& th,
+                                                          PrevHit& prev_state) {
+    prev_state = PrevHit::kNone;
+    if constexpr (kTest == TriangleTest::kWatertight) {
+        WatertightRay w = l.tri_test.w;
+        for (int a = 0; a < 3; ++a) w.org[a] = l.nray.org[a];  // as with_org
+        WatertightEdges e;
+        if (!watertight_edges(w, tri.v0, tri.v1, tri.v2, e)) return TriangleStep::kMiss;
+        const bool nonzero = e.eu != 0.0f && e.ev != 0.0f && e.ew != 0.0f;
+        float lo, hi;
+        const RangeVerdict v = watertight_range_interval(w, tri.v0, tri.v1, tri.v2, l.tmin, tlo, l.tmax, lo, hi);
+        if (v == RangeVerdict::kMiss) return TriangleStep::kMiss;
+        if (v == RangeVerdict::kInside && nonzero) {
+            l.tmax = hi;
+            tlo = lo;
+            l.hit_tri = ti;
+            return TriangleStep::kDeferred;
+        }
+        // One call site of the whole test: the deferred hit's triangle, then this one.
+        for (;;) {
+            const bool finishing = l.hit_deferred(tlo);
+            TriangleHit h{l.tmax, 0.0f, 0.0f};
+            const bool hit = whole(finishing ? l.hit_tri : ti, l.tmax, h);
+            if (finishing) {
+                prev_state = hit ? PrevHit::kFinished : PrevHit::kFailed;
+                l.tmax = tlo = h.t;
+                th = h;
+                continue;
+            }
+            if (!hit) return TriangleStep::kWholeMiss;
+            l.tmax = tlo = h.t;
+            l.hit_tri = ti;
+            th = h;
+            return TriangleStep::kExact;
+        }
+    } else {
+        (void)whole;
+        if (!test_triangle(l, tri, ti, th)) return TriangleStep::kMiss;
+        tlo = th.t;
+        return TriangleStep::kExact;
+    }
 }
 
 /// Postpones the triangle group (paper 4.2): pushes it and clears it. False when

@@ -92,8 +92,9 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
     bool exhausted = false;  // warp-uniform: the global ray counter ran past the end
 
     // The lane's one state word: no ray (kIdle), tracing ray_id (kRunning), or the
-    // TraceStatus of the ray that ended in this iteration, carried out once, at the
-    // iteration's end (one copy of the hit write in the code). One word, not an
+    // TraceStatus of the ray that ended, whose hit is written at the warp's next refill
+    // (one copy of the hit write in the code, run by all the warp's ended lanes at
+    // once). One word, not an
     // `active` flag beside an `ending` code: under the 80-register cap nvcc kept the
     // flag as a byte in a shared register and copied both around the loop (issue 18).
     // A lane wants triangles only while it runs: the rounds test the state (one compare)
@@ -104,6 +105,25 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
     auto finish = [&](TraceStatus status) { state = uint32_t(status); };
 
     for (;;) {
+        // ---- Write the hits of the rays that ended since the last refill, all such lanes
+        // of the warp together (until issue 18's deferred writes, each iteration in which
+        // some lane ended ran this block: most iterations).
+        if (state < kIdle) {
+            const TraceStatus status = TraceStatus(state);
+            // The closest hit so far, also for a ray cut short (overflow, bad index):
+            // what traverse.h returns (hit_tri is always a checked TRIS index).
+            Hit h = make_miss();
+            if (l.hit_tri != kNoTriangle) {
+                const float2 uv = s_uv[threadIdx.x];
+                h = Hit{l.tmax, uv.x, uv.y, load_triangle_prim(p.tris + l.hit_tri)};
+            }
+            store_hit(p.hits + ray_id, h);
+            if (p.status) p.status[ray_id] = status;
+            if (status == TraceStatus::kStackOverflow) count_rare(&p.work->overflows);
+            if (status == TraceStatus::kBadIndex) count_rare(&p.work->bad_indices);
+            stack.clear();
+            state = kIdle;
+        }
         // ---- Refill idle lanes: one atomicAdd per warp, base broadcast by shuffle.
         const unsigned idle = __ballot_sync(kFullMask, state == kIdle);
         if (idle != 0 && !exhausted) {
@@ -178,22 +198,6 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
             }
 
             if (state == kRunning && pop_if_idle(l, stack)) state = uint32_t(TraceStatus::kOk);
-            if (state < kIdle) {
-                const TraceStatus status = TraceStatus(state);
-                // The closest hit so far, also for a ray cut short (overflow, bad index):
-                // what traverse.h returns (hit_tri is always a checked TRIS index).
-                Hit h = make_miss();
-                if (l.hit_tri != kNoTriangle) {
-                    const float2 uv = s_uv[threadIdx.x];
-                    h = Hit{l.tmax, uv.x, uv.y, load_triangle_prim(p.tris + l.hit_tri)};
-                }
-                store_hit(p.hits + ray_id, h);
-                if (p.status) p.status[ray_id] = status;
-                if (status == TraceStatus::kStackOverflow) count_rare(&p.work->overflows);
-                if (status == TraceStatus::kBadIndex) count_rare(&p.work->bad_indices);
-                stack.clear();
-                state = kIdle;
-            }
 
             const unsigned act = __ballot_sync(kFullMask, state == kRunning);
             if (act == 0) break;

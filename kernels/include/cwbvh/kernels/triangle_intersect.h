@@ -246,6 +246,91 @@ CWBVH_HD CWBVH_INLINE bool watertight_range_miss(const WatertightRay& w, const f
     return far || near;
 }
 
+/// watertight_range_miss's float quantities, for watertight_range_interval: T = NUM / DEN
+/// with the signs folded so that T = np' / dp' for the exact np', dp' > 0, and
+/// |np - np'| <= en - 8u M_num, |dp - dp'| <= ed - 8u M_den (the bounds above, with the
+/// spare 8u of each sum left over). False when float cannot certify the sign of DEN (or P
+/// overflows, or NaN). The same operations as watertight_range_miss, statement for
+/// statement (tests/traverse/triangle_range_test.cpp: the two decide the same misses).
+/// Not shared with it on purpose: watertight_range_miss written over this function
+/// compiled to a BVH2 kernel of 72 registers instead of 64, and CWBVH kernels with
+/// spills (nvcc 13.0, sm_90), with the same operations.
+CWBVH_HD CWBVH_INLINE bool watertight_plane_float(const WatertightRay& w, const float* v0, const float* v1,
+                                                  const float* v2, float& np, float& dp, float& en, float& ed) {
+    const float px0 = v0[0], py0 = v0[1], pz0 = v0[2];
+    const float e1x = sub_rn(v1[0], px0), e1y = sub_rn(v1[1], py0), e1z = sub_rn(v1[2], pz0);
+    const float e2x = sub_rn(v2[0], px0), e2y = sub_rn(v2[1], py0), e2z = sub_rn(v2[2], pz0);
+    const float ax = sub_rn(px0, w.org[0]), ay = sub_rn(py0, w.org[1]), az = sub_rn(pz0, w.org[2]);
+    const float mx = mul_rn(e1z, e2y), my = mul_rn(e1x, e2z), mz = mul_rn(e1y, e2x);
+    const float nx = fma_rn(e1y, e2z, -mx), ny = fma_rn(e1z, e2x, -my), nz = fma_rn(e1x, e2y, -mz);
+    const float Px = fma_rn(abs_fm(e1y), abs_fm(e2z), abs_fm(mx));
+    const float Py = fma_rn(abs_fm(e1z), abs_fm(e2x), abs_fm(my));
+    const float Pz = fma_rn(abs_fm(e1x), abs_fm(e2y), abs_fm(mz));
+    if (!(add_rn(add_rn(Px, Py), Pz) < 8.5070591730234616e+37f)) return false;  // 2^126; NaN
+    const float dx = w.dir[0], dy = w.dir[1], dz = w.dir[2];
+    const float num = fma_rn(nx, ax, fma_rn(ny, ay, mul_rn(nz, az)));
+    const float den = fma_rn(nx, dx, fma_rn(ny, dy, mul_rn(nz, dz)));
+    const float Mn = fma_rn(Px, abs_fm(ax), fma_rn(Py, abs_fm(ay), mul_rn(Pz, abs_fm(az))));
+    const float Md = fma_rn(Px, abs_fm(dx), fma_rn(Py, abs_fm(dy), mul_rn(Pz, abs_fm(dz))));
+    const float sa = add_rn(add_rn(abs_fm(ax), abs_fm(ay)), abs_fm(az));
+    const float sd = add_rn(add_rn(abs_fm(dx), abs_fm(dy)), abs_fm(dz));
+    en = fma_rn(Mn, 9.5367431640625e-07f, fma_rn(sa, 1.1210387714598537e-44f, 1.1210387714598537e-44f));
+    ed = fma_rn(Md, 9.5367431640625e-07f, fma_rn(sd, 1.4947183447801235e-44f, 1.1210387714598537e-44f));
+    dp = abs_fm(den);
+    np = bits_to_float(float_to_bits(num) ^ (float_to_bits(den) & 0x80000000u));
+    if (!(dp > ed)) return false;  // the sign of DEN is not certain (or NaN)
+    return true;
+}
+
+/// What the float stage can say about a triangle whose edge signs agree (GPU lanes that
+/// defer the double-precision hit distance: cwbvh_lane.h, test_triangle_deferred).
+enum class RangeVerdict : uint32_t {
+    kMiss = 0,       ///< T certainly outside [tmin, tmax]: watertight_range_miss
+    kInside = 1,     ///< [lo, hi] holds the float t the whole test reports, tmin <= lo, hi <= tlo
+    kUndecided = 2,  ///< neither: only the whole test can tell
+};
+
+/// The float range stage with bounds (issue 18). kMiss exactly when watertight_range_miss
+/// is true. kInside when float certifies all of the following, so that the whole test
+/// (intersect_triangle_watertight) on the same inputs, with any tmax' >= hi, passes its
+/// plane and range tests and reports a t in [lo, hi]:
+///   - the sign of DEN (dp > ed), so plane_t's double bound test passes: |DEN| > ed - (ed -
+///     8u M_den) >= 8u_f M_den, far above plane_t's 2^-49 M_den plus its own 7u_d M_den error;
+///   - lo <= dt <= hi for plane_t's double quotient dt, hence lo <= float(dt) <= hi (both are
+///     floats; rounding is monotone): A_lo = nextDown(RN(np - en)) > 0 and
+///     B_hi = nextUp(RN(dp + ed)) bound np' - 8u M_num and dp' + 8u M_den from below and
+///     above (the float errors are within en, ed less the spare 8u of the sums), and the
+///     double errors of plane_t's num and den are below 8u_d M_num and 7u_d M_den, far
+///     inside the spare: A_lo / B_hi <= num_d / den_d. The double division rounds by
+///     u_d = 2^-53 relative; lo = nextDown(RN(A_lo / B_hi)) lies at least 2^-25 relative
+///     below A_lo / B_hi when it is a normal float (lo >= 2^-100 is required). hi mirrors
+///     it with A_hi = nextUp(RN(np + en)), B_lo = nextDown(RN(dp - ed)), and must be finite;
+///   - tmin <= lo and hi <= tlo.
+/// The nextUp/nextDown of positive floats are their bits plus or minus one (RN(x) errs by at
+/// most half a step, so one step outward bounds x); a zero or infinite operand turns into NaN
+/// or a bound that fails the tests: kUndecided. Every operation is an IEEE operation rounded
+/// to nearest (host and device give the same bits). tests/traverse/triangle_range_test.cpp
+/// checks lo <= t <= hi against the whole test.
+CWBVH_HD CWBVH_INLINE RangeVerdict watertight_range_interval(const WatertightRay& w, const float* v0,
+                                                            const float* v1, const float* v2, float tmin,
+                                                            float tlo, float tmax, float& lo, float& hi) {
+    float np, dp, en, ed;
+    if (!watertight_plane_float(w, v0, v1, v2, np, dp, en, ed)) return RangeVerdict::kUndecided;
+    const float a = sub_rn(np, en);  // RN(np - en)
+    const float bh = add_rn(dp, ed);
+    const float ah = add_rn(np, en);
+    const float bl = sub_rn(dp, ed);
+    if (tmax >= 0.0f && a > mul_rn(tmax, bh)) return RangeVerdict::kMiss;   // far
+    if (tmin >= 0.0f && ah < mul_rn(tmin, bl)) return RangeVerdict::kMiss;  // near
+    if (!(a > 0.0f)) return RangeVerdict::kUndecided;  // T may be <= 0 (or NaN)
+    // bl >= 2^-149 here: dp > ed, and a difference of floats is a multiple of 2^-149.
+    lo = bits_to_float(float_to_bits(bits_to_float(float_to_bits(a) - 1u) / bits_to_float(float_to_bits(bh) + 1u)) - 1u);
+    hi = bits_to_float(float_to_bits(bits_to_float(float_to_bits(ah) + 1u) / bits_to_float(float_to_bits(bl) - 1u)) + 1u);
+    const bool inside = lo >= tmin && lo >= 7.8886090522101181e-31f /* 2^-100 */ && hi <= tlo &&
+                        hi <= 3.4028234663852886e38f;
+    return inside ? RangeVerdict::kInside : RangeVerdict::kUndecided;
+}
+
 CWBVH_HD CWBVH_INLINE bool intersect_triangle_watertight(const WatertightRay& w, const float* v0,
                                                          const float* v1, const float* v2,
                                                          float tmin, float tmax, TriangleHit& out) {

@@ -18,8 +18,10 @@
 //      either postpones its group (should_postpone(wanting, active, has node work))
 //      or tests one triangle; (c) lanes without node work pop the next group into
 //      the node or the triangle group (pop_if_idle); a lane with an empty stack ends
-//      its ray; (d) lost = update_lost_work(lost, active); back to 1 when
-//      lost >= Nw and rays remain, else next iteration.
+//      its ray, whose hit is written at the warp's next refill (all ended lanes
+//      together; with defer_hits their deferred hits are finished there); (d) lost =
+//      update_lost_work(lost, active); back to 1 when lost >= Nw and rays remain, else
+//      next iteration.
 // Warps are scheduled round-robin, one iteration each, and fetch from one shared
 // counter, so a refill takes rays from wherever the counter is (as on the GPU with
 // many resident warps).
@@ -66,6 +68,10 @@ struct WarpModelOptions {
     /// false: any wanting lane postpones (the kernel's rule, gpu_stack.h).
     bool postpone_needs_node_work = kPostponeOnlyWithNodeWork;
     bool dynamic_fetch = true;                ///< refill by lost work (else: when all lanes are done)
+    /// Watertight CWBVH: defer the double-precision hit distance (cwbvh_lane.h,
+    /// test_triangle_deferred) as a kernel could; the kernel does not (yet): inlined in it,
+    /// the deferral took the watertight kernels past 80 registers (52-80 bytes of spills).
+    bool defer_hits = false;
     int fetch_nd = kDynamicFetchNd;
     int fetch_nw = kDynamicFetchNw;
     int shared_stack_entries = kGpuSharedStackEntries;  ///< entries below this depth are "shared"
@@ -105,6 +111,15 @@ struct WarpModelStats {
     uint64_t spilled_pushes = 0;    ///< pushes at depth >= shared_stack_entries
     uint64_t max_stack = 0;         ///< deepest stack seen
     uint64_t stack_overflows = 0, bad_indices = 0, invalid_rays = 0;
+    // The watertight test's double-precision path, and deferred hits (defer_hits:
+    // cwbvh_lane.h, test_triangle_deferred):
+    uint64_t lane_deferred_hits = 0;  ///< hits taken on float bounds, t, u, v deferred
+    uint64_t lane_whole_tests = 0;    ///< triangle tests that reached the double-precision path
+    uint64_t warp_whole_rounds = 0;   ///< triangle rounds in which some lane reached it
+    uint64_t lane_prev_finished = 0;  ///< deferred hits finished inside a round (float undecided)
+    uint64_t warp_finalize_steps = 0; ///< refills that finished deferred hits (>= 1 lane)
+    uint64_t lane_finalized = 0;      ///< deferred hits finished at refill time
+    uint64_t finalize_failures = 0;   ///< finalize_hit returned false: a bug (tests hold it at 0)
     uint64_t active_lane_iterations = 0;  ///< sum over iterations of lanes holding a ray
     uint64_t node_lane_hist[33] = {};     ///< warp node steps by lanes active in them
     uint64_t tri_lane_hist[33] = {};      ///< warp triangle rounds by lanes active in them
