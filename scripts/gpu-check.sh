@@ -42,6 +42,9 @@
 # env:   BUILD=build-gpu  ARCH=(CMAKE_CUDA_ARCHITECTURES, default: the project's 75/90 set)
 #        MIN_BLOCKS=N: the CWBVH kernel's __launch_bounds__ minimum blocks per SM (default 6 =
 #        80 registers; 8 = 64): register/occupancy experiments, use a separate BUILD folder
+#        DEFER_HITS=0: the watertight CWBVH kernels without deferred hit distances (the kernel
+#        before issue 18's deferral; the warp model: cwbvh model --no-defer-hits), for an A/B
+#        run; use a separate BUILD folder
 #        CSV=path of the results table (default $BUILD/gpu_check.csv; commit a copy under
 #        bench/results/gpu/ with the command and the device)
 #        COMPILE_THREADS=N cwbvhc threads (default: nproc)
@@ -74,6 +77,7 @@ command -v ninja >/dev/null && gen=(-G Ninja)
 arch_args=()
 [[ -n "${ARCH:-}" ]] && arch_args=(-DCMAKE_CUDA_ARCHITECTURES="$ARCH")
 [[ -n "${MIN_BLOCKS:-}" ]] && arch_args+=(-DCWBVH_CWBVH_MIN_BLOCKS="$MIN_BLOCKS")
+[[ "${DEFER_HITS:-1}" == 0 ]] && arch_args+=(-DCWBVH_DEFER_HITS=OFF)
 cc=$(nvidia-smi --query-gpu=compute_cap --format=csv,noheader 2>/dev/null | head -1 | tr -d . || true)
 # The OptiX peer: on when the headers are there (its IR for this device's architecture).
 optix_inc=${OPTIX_INCLUDE_DIR:-$inputs/optix/include}

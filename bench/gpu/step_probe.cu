@@ -71,6 +71,21 @@ __global__ void probe_triangle_range(const TriangleRecord* tris, const Ray* rays
     out[threadIdx.x] = pass ? __float_as_uint(e.eu + e.ev + e.ew) : 0u;
 }
 
+/// A deferred hit (cwbvh_lane.h, test_triangle_deferred): the edge signs and the float
+/// range stage with its bounds (watertight_range_interval), all that a triangle float
+/// proves the closest so far costs; its double-precision distance waits for the refill.
+__global__ void probe_triangle_interval(const TriangleRecord* tris, const Ray* rays, uint32_t* out) {
+    CwbvhLane<TriangleTest::kWatertight> l(gpu::load_ray(rays + threadIdx.x));
+    const TriangleRecord t = gpu::load_triangle(tris + out[threadIdx.x]);
+    WatertightEdges e;
+    float lo = 0.0f, hi = 0.0f;
+    const bool pass = watertight_edges(l.tri_test.w, t.v0, t.v1, t.v2, e) &&
+                      watertight_range_interval(l.tri_test.w, t.v0, t.v1, t.v2, l.tmin, l.tmax, l.tmax, lo, hi) ==
+                          RangeVerdict::kInside &&
+                      abs_f(e.eu) > 0.0f && abs_f(e.ev) > 0.0f && abs_f(e.ew) > 0.0f;
+    out[threadIdx.x] = pass ? __float_as_uint(lo) ^ __float_as_uint(hi) : 0u;
+}
+
 /// The watertight test's per-ray set-up alone (ray load, shear constants): subtracted
 /// from the triangle probes, which hold it too.
 __global__ void probe_triangle_setup(const Ray* rays, uint32_t* out) {

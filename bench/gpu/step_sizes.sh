@@ -50,6 +50,8 @@ for k, v in net.items():
         print(f"watertight triangle test, first stage (decides the misses), net of set-up: {v - tri_setup} instructions")
     elif "probe_triangle_range" in k:
         print(f"watertight triangle test, first two stages (misses by edge or by range, in float), net of set-up: {v - tri_setup} instructions")
+    elif "probe_triangle_interval" in k:
+        print(f"watertight triangle test, a deferred hit (edge signs, float range stage and its bounds), net of set-up: {v - tri_setup} instructions")
     elif "probe_triangle<(cwbvh::TriangleTest)0>" in k:
         print(f"watertight triangle test, whole (hit path, double fallbacks included), net of set-up: {v - tri_setup} instructions")
 reference = next(v for k, v in net.items() if "probe_cwbvh_node<" in k and "false>" in k)

@@ -1,6 +1,8 @@
 // Lock-step SIMT warp model (see warp_model.h for the rules it follows).
 #include "cwbvh/kernels/warp_model.h"
 
+#include <cstring>
+
 #include <algorithm>
 #include <vector>
 
@@ -142,8 +144,12 @@ private:
             Hit h = make_miss();
             if (lane.l.hit_tri != kNoTriangle) {
                 if (lane.l.hit_deferred(lane.tlo)) {
+                    // finalize_hit's watertight_finish must give the whole test's t, u, v.
+                    TriangleHit whole_th{};
+                    const bool whole_hit = HostWholeTest<kTest>{&lane.l, tris_}(lane.l.hit_tri, lane.l.tmax, whole_th);
                     TriangleHit th;
-                    if (!finalize_hit(lane.l, lane.tlo, HostWholeTest<kTest>{&lane.l, tris_}, th)) ++s_.finalize_failures;
+                    finalize_hit(lane.l, lane.tlo, tris_[lane.l.hit_tri], th);
+                    if (!whole_hit || std::memcmp(&whole_th, &th, sizeof th) != 0) ++s_.finalize_failures;
                     lane.u = th.u;
                     lane.v = th.v;
                     ++finishing;

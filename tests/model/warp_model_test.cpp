@@ -65,7 +65,7 @@ TEST(WarpModel, DeferredHitsGiveTheReferencesHits) {
             WarpModelOptions o;
             o.mode = mode;
             o.warps = warps;
-            o.defer_hits = true;
+            ASSERT_TRUE(o.defer_hits) << "the kernel's way is the default";
             std::vector<Hit> hits;
             const WarpModelStats s = run(f, o, hits);
             expect_same_hits(hits, reference(f, mode, TriangleTest::kWatertight), mode);

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <random>
 
 #include "cwbvh/kernels/ray.h"
@@ -61,20 +62,25 @@ struct Tally {
 /// watertight_range_interval on the same range: its kMiss is watertight_range_miss's
 /// answer, and where it says kInside (and the edge signs agree, all nonzero: what
 /// test_triangle_deferred also requires) the whole test, with tmax = hi and with the
-/// range's own tmax, hits at a t in [lo, hi], tmin <= lo and hi <= tmax.
+/// range's own tmax, hits at a t in [lo, hi], tmin <= lo and hi <= tmax, and
+/// watertight_finish gives that hit's t, u, v bit for bit.
 void check_interval(const WatertightRay& w, const float* v0, const float* v1, const float* v2, float tmin,
                     float tmax, bool miss, Tally& tally) {
     float lo = NAN, hi = NAN;
     const RangeVerdict v = watertight_range_interval(w, v0, v1, v2, tmin, tmax, tmax, lo, hi);
     if ((v == RangeVerdict::kMiss) != miss) ++tally.interval_verdict_differs;
     WatertightEdges e;
-    if (v != RangeVerdict::kInside || !watertight_edges(w, v0, v1, v2, e) || e.eu == 0 || e.ev == 0 || e.ew == 0)
+    if (v != RangeVerdict::kInside || !watertight_edges(w, v0, v1, v2, e) || !(std::fabs(e.eu) > 0) ||
+        !(std::fabs(e.ev) > 0) || !(std::fabs(e.ew) > 0))
         return;
     ++tally.interval_inside;
     TriangleHit a{}, b{};
     const bool ha = intersect_triangle_watertight(w, v0, v1, v2, tmin, hi, a);
     const bool hb = intersect_triangle_watertight(w, v0, v1, v2, tmin, tmax, b);
-    if (!(ha && hb && a.t == b.t && lo <= a.t && a.t <= hi && tmin <= lo && hi <= tmax && lo < hi)) {
+    // A deferred hit is finished by watertight_finish: the whole test's t, u, v bit for bit.
+    const TriangleHit f = watertight_finish(w, v0, v1, v2);
+    const bool same = std::memcmp(&f, &a, sizeof f) == 0 && std::memcmp(&a, &b, sizeof a) == 0;
+    if (!(ha && hb && same && lo <= a.t && a.t <= hi && tmin <= lo && hi <= tmax && lo < hi)) {
         if (++tally.interval_wrong <= 5)
             std::printf("interval wrong: lo %.9g hi %.9g hit %d t %.9g, tmin %.9g tmax %.9g\n", double(lo), double(hi),
                         int(ha), double(a.t), double(tmin), double(tmax));

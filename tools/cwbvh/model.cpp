@@ -1,6 +1,6 @@
 // cwbvh model FILE --rays RAYS [--bvh2|--bvh2-2009] [--any] [--fast] [--warps N] [--no-postpone]
 //                  [--postpone-percent P] [--postpone-with-node-work] [--no-dynamic-fetch] [--nd N] [--nw N]
-//                  [--shared-entries N] [--node-instructions N] [--tri-instructions N] [--defer-hits] [--check]
+//                  [--shared-entries N] [--node-instructions N] [--tri-instructions N] [--no-defer-hits] [--check]
 // Runs the CPU lock-step warp model of the GPU kernels (warp_model.h) over a ray
 // file and prints SIMT efficiency figures: active lanes per node step and per
 // triangle round, steps per ray, the node/triangle phase mix, spills, refills.
@@ -35,7 +35,7 @@ int run_model(int argc, char** argv) {
     const char* usage =
         "usage: cwbvh model FILE --rays RAYS [--bvh2|--bvh2-2009] [--any] [--fast] [--warps N] [--no-postpone] "
         "[--postpone-percent P] [--postpone-with-node-work] [--no-dynamic-fetch] [--nd N] [--nw N] [--shared-entries "
-        "N] [--node-instructions N] [--tri-instructions N] [--defer-hits] [--check]";
+        "N] [--node-instructions N] [--tri-instructions N] [--no-defer-hits] [--check]";
     const char* path = nullptr;
     const char* rays_path = nullptr;
     bool bvh2 = false, check = false;
@@ -63,8 +63,8 @@ int run_model(int argc, char** argv) {
             o.postpone_needs_node_work = true;
         } else if (a == "--no-dynamic-fetch") {
             o.dynamic_fetch = false;
-        } else if (a == "--defer-hits") {
-            o.defer_hits = true;
+        } else if (a == "--no-defer-hits") {
+            o.defer_hits = false;
         } else if (a == "--warps") {
             if (!num(1, 1u << 20)) return error(kExitUsage, "model: --warps needs an integer in [1, 1048576]");
             o.warps = v;
@@ -153,7 +153,8 @@ int run_model(int argc, char** argv) {
     std::printf("postponed groups %llu (%.3f per ray)\n", (unsigned long long)s.postponed, double(s.postponed) / n);
     if (!bvh2 && o.test == TriangleTest::kWatertight) {
         // The watertight test's double-precision path: how often a warp runs it, in its
-        // rounds and, with --defer-hits (cwbvh_lane.h, test_triangle_deferred), at refill time.
+        // rounds and, with deferred hits (cwbvh_lane.h, test_triangle_deferred; the kernel's
+        // way; --no-defer-hits: the kernel before issue 18's deferral), at refill time.
         std::printf("double path      %llu tests (%.3f per ray) in %llu rounds (%.3f per ray, %.1f%% of rounds)\n",
                     (unsigned long long)s.lane_whole_tests, double(s.lane_whole_tests) / n,
                     (unsigned long long)s.warp_whole_rounds, double(s.warp_whole_rounds) / n,

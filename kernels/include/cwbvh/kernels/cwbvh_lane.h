@@ -185,18 +185,21 @@ struct HostWholeTest {
     }
 };
 
-/// Finishes a deferred hit (l.hit_deferred(tlo)): the whole test on the hit's triangle
-/// (TRIS index l.hit_tri), which certainly passes (watertight_range_interval's kInside),
-/// gives its t, u, v; tmax and tlo become t. The kernel runs it for all lanes of a warp
-/// at once, at refill time (traverse_gpu.h). Returns the whole test's answer, which is
-/// true by watertight_range_interval's guarantee (the warp model counts any false:
-/// WarpModelStats::finalize_failures, which the tests hold at 0).
-template <TriangleTest kTest, class Whole>
-CWBVH_HD CWBVH_INLINE bool finalize_hit(CwbvhLane<kTest>& l, float& tlo, const Whole& whole, TriangleHit& th) {
-    th = TriangleHit{l.tmax, 0.0f, 0.0f};
-    const bool hit = whole(l.hit_tri, l.tmax, th);
+/// Finishes a deferred hit (l.hit_deferred(tlo)) at refill time: its t, u, v from its
+/// triangle `tri` (TRIS index l.hit_tri) by watertight_finish, which gives what the whole
+/// test would (watertight_range_interval certified the hit) with fewer registers; tmax and
+/// tlo become t. The kernel runs it for all of a warp's ended lanes at once (traverse_gpu.h).
+template <TriangleTest kTest>
+CWBVH_HD CWBVH_INLINE void finalize_hit(CwbvhLane<kTest>& l, float& tlo, const TriangleRecord& tri, TriangleHit& th) {
+    if constexpr (kTest == TriangleTest::kWatertight) {
+        WatertightRay w = l.tri_test.w;
+        for (int a = 0; a < 3; ++a) w.org[a] = l.nray.org[a];  // as with_org
+        th = watertight_finish(w, tri.v0, tri.v1, tri.v2);
+    } else {
+        (void)tri;
+        th = TriangleHit{l.tmax, 0.0f, 0.0f};  // never deferred
+    }
     l.tmax = tlo = th.t;
-    return hit;
 }
 
 /// Triangle step, second half, as the GPU kernel runs it (issue 18): the watertight
@@ -207,13 +210,15 @@ CWBVH_HD CWBVH_INLINE bool finalize_hit(CwbvhLane<kTest>& l, float& tlo, const W
 /// hit costs a float interval, and the warp finishes its deferred hits together when it
 /// refills (3 % of the rounds and 0.08 refills a ray on that ray set: `cwbvh model`).
 ///   - edge signs mixed, or T certainly outside [tmin, tmax]: kMiss;
-///   - all three edge functions nonzero and watertight_range_interval kInside (float t
+///   - all three edge functions nonzero and not NaN, and watertight_range_interval kInside (float t
 ///     certainly in [lo, hi], tmin <= lo, hi <= tlo: closer than the closest hit, deferred
 ///     or not): the new closest hit, deferred (tmax = hi, tlo = lo): kDeferred;
 ///   - otherwise the whole test (`whole`: TRIS index, tmax -> hit, t, u, v) decides,
-///     against the exact distance of the closest hit so far: a deferred one is finished
-///     first (prev_state kFinished; kFailed if the whole test says no, which cannot happen
-///     and the warp model counts). kExact on a hit (tmax = tlo = t), kWholeMiss if not.
+///     against the exact distance of the closest hit so far: kExact on a hit (tmax = tlo =
+///     t), kWholeMiss if not. With a deferred hit, the whole test runs on that hit's
+///     triangle instead (prev_state kFinished; kFailed if it says no, which cannot happen
+///     and the warp model counts), and this triangle goes back into the group for the next
+///     round (kWholeMiss): one call site of the whole test, not two.
 /// th holds the t, u, v of the closest hit whenever the whole test found them: on kExact,
 /// and on kWholeMiss when a deferred hit was finished.
 /// The hit found is the reference's (traverse.h): a triangle is taken exactly when its
@@ -230,7 +235,10 @@ CWBVH_HD CWBVH_INLINE TriangleStep test_triangle_deferred(CwbvhLane<kTest>& l, f
         for (int a = 0; a < 3; ++a) w.org[a] = l.nray.org[a];  // as with_org
         WatertightEdges e;
         if (!watertight_edges(w, tri.v0, tri.v1, tri.v2, e)) return TriangleStep::kMiss;
-        const bool nonzero = e.eu != 0.0f && e.ev != 0.0f && e.ew != 0.0f;
+        // Edge functions that are not 0 and not NaN have the exact signs (rounding is
+        // monotone; an overflow to +-inf keeps the sign, inf - inf is NaN), so the whole
+        // test's double recomputation cannot reject the triangle (watertight_finish).
+        const bool nonzero = abs_f(e.eu) > 0.0f && abs_f(e.ev) > 0.0f && abs_f(e.ew) > 0.0f;
         float lo, hi;
         const RangeVerdict v = watertight_range_interval(w, tri.v0, tri.v1, tri.v2, l.tmin, tlo, l.tmax, lo, hi);
         if (v == RangeVerdict::kMiss) return TriangleStep::kMiss;
@@ -240,23 +248,24 @@ CWBVH_HD CWBVH_INLINE TriangleStep test_triangle_deferred(CwbvhLane<kTest>& l, f
             l.hit_tri = ti;
             return TriangleStep::kDeferred;
         }
-        // One call site of the whole test: the deferred hit's triangle, then this one.
-        for (;;) {
-            const bool finishing = l.hit_deferred(tlo);
-            TriangleHit h{l.tmax, 0.0f, 0.0f};
-            const bool hit = whole(finishing ? l.hit_tri : ti, l.tmax, h);
-            if (finishing) {
-                prev_state = hit ? PrevHit::kFinished : PrevHit::kFailed;
-                l.tmax = tlo = h.t;
-                th = h;
-                continue;
-            }
-            if (!hit) return TriangleStep::kWholeMiss;
+        // One call site of the whole test. With a deferred hit, that hit's triangle is
+        // finished in this round and this triangle goes back into the group, to be tested
+        // in the next round against the exact distance.
+        const bool finishing = l.hit_deferred(tlo);
+        if (finishing) l.tri_group.hits |= 1u << (ti - l.tri_group.base);
+        TriangleHit h{l.tmax, 0.0f, 0.0f};
+        const bool hit = whole(finishing ? l.hit_tri : ti, l.tmax, h);
+        if (finishing) {
+            prev_state = hit ? PrevHit::kFinished : PrevHit::kFailed;
             l.tmax = tlo = h.t;
-            l.hit_tri = ti;
             th = h;
-            return TriangleStep::kExact;
+            return TriangleStep::kWholeMiss;
         }
+        if (!hit) return TriangleStep::kWholeMiss;
+        l.tmax = tlo = h.t;
+        l.hit_tri = ti;
+        th = h;
+        return TriangleStep::kExact;
     } else {
         (void)whole;
         if (!test_triangle(l, tri, ti, th)) return TriangleStep::kMiss;

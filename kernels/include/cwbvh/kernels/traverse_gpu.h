@@ -49,9 +49,57 @@ inline constexpr int kCwbvhBlockThreads = kCwbvhWarpsPerBlock * kWarpSize;
 #endif
 inline constexpr int kCwbvhMinBlocksPerSm = CWBVH_CWBVH_MIN_BLOCKS;
 
+/// Deferred hit distances (issue 18; cwbvh_lane.h, test_triangle_deferred): the
+/// watertight kernels take a hit float proves the closest so far without the double-
+/// precision distance and finish it when the warp refills. 0: the whole test at every
+/// triangle past the float stages, as before (CMake -DCWBVH_DEFER_HITS=OFF,
+/// scripts/gpu-check.sh: DEFER_HITS=0), for an A/B run on a GPU.
+#ifndef CWBVH_DEFER_HITS
+#define CWBVH_DEFER_HITS 1
+#endif
+inline constexpr bool kDeferHits = CWBVH_DEFER_HITS != 0;
+
 // ---------------------------------------------------------------------------
 // CWBVH kernel body
 // ---------------------------------------------------------------------------
+
+/// test_triangle_deferred's `whole` on the device (the host's: HostWholeTest): the whole
+/// watertight test of a triangle read through the read-only cache.
+template <TriangleTest kTest>
+struct DeviceWholeTest {
+    TriangleIntersector<kTest> test;
+    float tmin;
+    const TriangleRecord* tris;
+    __device__ __forceinline__ DeviceWholeTest(const CwbvhLane<kTest>& l, const TriangleRecord* t)
+        : test(l.tri_test.with_org(l.nray.org)), tmin(l.tmin), tris(t) {}
+    __device__ __forceinline__ bool operator()(uint32_t index, float tmax, TriangleHit& th) const {
+        return test(load_triangle(tris + index), tmin, tmax, th);
+    }
+};
+
+/// The watertight test's per-ray rows (WatertightRay: dir, mx, my) to and from shared
+/// memory, one float per lane in each of nine rows (no bank conflicts). The fast test's
+/// constants stay in registers.
+template <TriangleTest kTest>
+__device__ __forceinline__ void save_rows(const CwbvhLane<kTest>& l, float (*s)[kCwbvhBlockThreads]) {
+    if constexpr (kDeferHits && kTest == TriangleTest::kWatertight) {
+        for (int a = 0; a < 3; ++a) {
+            s[a][threadIdx.x] = l.tri_test.w.dir[a];
+            s[3 + a][threadIdx.x] = l.tri_test.w.mx[a];
+            s[6 + a][threadIdx.x] = l.tri_test.w.my[a];
+        }
+    }
+}
+template <TriangleTest kTest>
+__device__ __forceinline__ void load_rows(CwbvhLane<kTest>& l, float (*s)[kCwbvhBlockThreads]) {
+    if constexpr (kDeferHits && kTest == TriangleTest::kWatertight) {
+        for (int a = 0; a < 3; ++a) {
+            l.tri_test.w.dir[a] = s[a][threadIdx.x];
+            l.tri_test.w.mx[a] = s[3 + a][threadIdx.x];
+            l.tri_test.w.my[a] = s[6 + a][threadIdx.x];
+        }
+    }
+}
 
 /// Rare per-ray outcomes go straight to the global totals (no per-lane counters).
 __device__ __forceinline__ void count_rare(unsigned long long* total) { atomicAdd(total, 1ull); }
@@ -76,7 +124,7 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
     PackedEntry spill[kGpuLocalStackEntries];  // local memory, apart from the stack object (gpu_stack.h)
     GpuStack stack(warp_stack_base + lane, spill);
 
-    uint32_t ray_id = 0;
+    __shared__ uint32_t s_ray_id[kCwbvhBlockThreads];  // read only when the hit is written
     CwbvhLane<kTest> l(Ray{{0.0f, 0.0f, 0.0f}, 0.0f, {1.0f, 1.0f, 1.0f}, 0.0f});
     // Statistics variant: the per-lane counters live in shared memory, not in two
     // registers the production variant does not have (keeps the counting variant
@@ -89,6 +137,13 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
     // memory, not two more registers (the 80-register cap); the same values bit for bit,
     // since the test that hit computed them.
     __shared__ float2 s_uv[kCwbvhBlockThreads];
+    // The lane's tlo (cwbvh_lane.h, CwbvhLane::hit_deferred), in shared memory: a register
+    // more pushed the watertight kernels past their 80 registers.
+    __shared__ float s_tlo[kCwbvhBlockThreads];
+    // The watertight test's per-ray rows (WatertightRay: dir, mx, my; org is the NodeRay's),
+    // in shared memory: nine registers the node steps never read, loaded before each
+    // triangle test (nine loads) instead of held across the loop (80-register cap).
+    __shared__ float s_wt[9][kCwbvhBlockThreads];
     bool exhausted = false;  // warp-uniform: the global ray counter ran past the end
 
     // The lane's one state word: no ray (kIdle), tracing ray_id (kRunning), or the
@@ -114,9 +169,18 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
             // what traverse.h returns (hit_tri is always a checked TRIS index).
             Hit h = make_miss();
             if (l.hit_tri != kNoTriangle) {
-                const float2 uv = s_uv[threadIdx.x];
+                float2 uv = s_uv[threadIdx.x];
+                if constexpr (kDeferHits && kTest == TriangleTest::kWatertight) {  // the fast test defers nothing
+                    if (l.hit_deferred(s_tlo[threadIdx.x])) {
+                        load_rows(l, s_wt);
+                        TriangleHit th;
+                        finalize_hit(l, s_tlo[threadIdx.x], load_triangle(p.tris + l.hit_tri), th);
+                        uv = make_float2(th.u, th.v);
+                    }
+                }
                 h = Hit{l.tmax, uv.x, uv.y, load_triangle_prim(p.tris + l.hit_tri)};
             }
+            const uint32_t ray_id = s_ray_id[threadIdx.x];
             store_hit(p.hits + ray_id, h);
             if (p.status) p.status[ray_id] = status;
             if (status == TraceStatus::kStackOverflow) count_rare(&p.work->overflows);
@@ -135,7 +199,7 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
             if (state == kIdle) {
                 const uint32_t id = base + __popc(idle & lanemask_lt(lane));
                 if (id < p.ray_count) {
-                    ray_id = id;
+                    s_ray_id[threadIdx.x] = id;
                     const Ray ray = load_ray(p.rays + id);
                     if (!ray_is_traceable(ray) || p.node_count == 0) {
                         store_hit(p.hits + id, make_miss());
@@ -143,6 +207,8 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                         count_rare(&p.work->invalid);
                     } else {
                         l = CwbvhLane<kTest>(ray, p.node_scale);
+                        save_rows(l, s_wt);
+                        s_tlo[threadIdx.x] = l.tmax;
                         stack.clear();
                         state = kRunning;
                     }
@@ -188,7 +254,16 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                         } else {
                             if (kCount) ++s_counts[1][threadIdx.x];
                             TriangleHit th;
-                            if (test_triangle(l, load_triangle(p.tris + ti), ti, th)) {
+                            if constexpr (kDeferHits && kTest == TriangleTest::kWatertight) {
+                                load_rows(l, s_wt);
+                                PrevHit prev_state;
+                                const TriangleStep step = test_triangle_deferred(
+                                    l, s_tlo[threadIdx.x], load_triangle(p.tris + ti), ti,
+                                    DeviceWholeTest<kTest>(l, p.tris), th, prev_state);
+                                if (step == TriangleStep::kExact || prev_state != PrevHit::kNone)
+                                    s_uv[threadIdx.x] = make_float2(th.u, th.v);
+                                if (kMode == HitMode::kAny && is_hit(step)) finish(TraceStatus::kOk);
+                            } else if (test_triangle(l, load_triangle(p.tris + ti), ti, th)) {
                                 s_uv[threadIdx.x] = make_float2(th.u, th.v);
                                 if (kMode == HitMode::kAny) finish(TraceStatus::kOk);
                             }

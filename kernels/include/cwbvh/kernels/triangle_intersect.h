@@ -385,6 +385,49 @@ CWBVH_HD CWBVH_INLINE bool intersect_triangle_watertight(const WatertightRay& w,
     return true;
 }
 
+/// t, u, v of a hit that watertight_range_interval certified (kInside, and the edge
+/// functions nonzero with agreeing signs): what intersect_triangle_watertight reports for
+/// it, bit for bit, without the tests that cannot fail for it (plane_t's bound on n.d and
+/// range, the double recomputation of zero edge functions). The same operations as
+/// plane_t's num and den and as its u, v paths; on the device a deferred hit is finished
+/// with it at refill time, where the whole test's temporaries (plane_t's bound keeps six
+/// products live) pushed the kernel past its registers. tests/traverse/triangle_range_test.cpp
+/// compares it with the whole test on every certified case.
+CWBVH_HD CWBVH_INLINE TriangleHit watertight_finish(const WatertightRay& w, const float* v0, const float* v1,
+                                                    const float* v2) {
+    const double px = v0[0], py = v0[1], pz = v0[2];
+    const double e1x = sub_rn(double(v1[0]), px), e1y = sub_rn(double(v1[1]), py);
+    const double e1z = sub_rn(double(v1[2]), pz);
+    const double e2x = sub_rn(double(v2[0]), px), e2y = sub_rn(double(v2[1]), py);
+    const double e2z = sub_rn(double(v2[2]), pz);
+    const double nx = sub_rn(mul_rn(e1y, e2z), mul_rn(e1z, e2y));
+    const double ny = sub_rn(mul_rn(e1z, e2x), mul_rn(e1x, e2z));
+    const double nz = sub_rn(mul_rn(e1x, e2y), mul_rn(e1y, e2x));
+    const double num = add_rn(add_rn(mul_rn(nx, sub_rn(px, double(w.org[0]))), mul_rn(ny, sub_rn(py, double(w.org[1])))),
+                              mul_rn(nz, sub_rn(pz, double(w.org[2]))));
+    const double den = add_rn(add_rn(mul_rn(nx, double(w.dir[0])), mul_rn(ny, double(w.dir[1]))),
+                              mul_rn(nz, double(w.dir[2])));
+    TriangleHit out;
+    out.t = float(num / den);
+    WatertightEdges e;
+    watertight_edges(w, v0, v1, v2, e);
+    const float det = add_rn(add_rn(e.eu, e.ev), e.ew);
+    const float adet = abs_f(det);
+    if (adet >= 5.42101086e-20f && adet <= 1.84467441e+19f) {
+        const float rcp = 1.0f / det;
+        out.u = mul_rn(e.ev, rcp);
+        out.v = mul_rn(e.ew, rcp);
+        return out;
+    }
+    const double du = sub_rn(mul_rn(double(e.cx), double(e.by)), mul_rn(double(e.cy), double(e.bx)));
+    const double dv = sub_rn(mul_rn(double(e.ax), double(e.cy)), mul_rn(double(e.ay), double(e.cx)));
+    const double dw = sub_rn(mul_rn(double(e.bx), double(e.ay)), mul_rn(double(e.by), double(e.ax)));
+    const double ddet = add_rn(add_rn(du, dv), dw);
+    out.u = float(dv / ddet);
+    out.v = float(dw / ddet);
+    return out;
+}
+
 // ---------------------------------------------------------------------------
 // Fast test (Moller & Trumbore 1997), no epsilon
 // ---------------------------------------------------------------------------

@@ -69,9 +69,9 @@ struct WarpModelOptions {
     bool postpone_needs_node_work = kPostponeOnlyWithNodeWork;
     bool dynamic_fetch = true;                ///< refill by lost work (else: when all lanes are done)
     /// Watertight CWBVH: defer the double-precision hit distance (cwbvh_lane.h,
-    /// test_triangle_deferred) as a kernel could; the kernel does not (yet): inlined in it,
-    /// the deferral took the watertight kernels past 80 registers (52-80 bytes of spills).
-    bool defer_hits = false;
+    /// test_triangle_deferred), as the kernel does; false: the whole test at every triangle
+    /// that passes the float stages, as the kernel did until issue 18's deferral.
+    bool defer_hits = true;
     int fetch_nd = kDynamicFetchNd;
     int fetch_nw = kDynamicFetchNw;
     int shared_stack_entries = kGpuSharedStackEntries;  ///< entries below this depth are "shared"
