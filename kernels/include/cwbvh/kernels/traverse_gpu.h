@@ -57,7 +57,15 @@ inline constexpr int kCwbvhMinBlocksPerSm = CWBVH_CWBVH_MIN_BLOCKS;
 #ifndef CWBVH_DEFER_HITS
 #define CWBVH_DEFER_HITS 1
 #endif
+/// Not before sm_80: the deferral's shared memory (the lane's tlo, ray id and nine per-ray
+/// constants, 5.6 KiB a block; 20 KiB in all) would leave a Turing SM (64 KiB) 3 resident
+/// blocks instead of 4. sm_80 and sm_90 (164 and 228 KiB) keep 6; sm_86/89 (100 KiB) run the
+/// sm_80 code with 5. The answers are the same either way.
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 800
+inline constexpr bool kDeferHits = false;
+#else
 inline constexpr bool kDeferHits = CWBVH_DEFER_HITS != 0;
+#endif
 
 // ---------------------------------------------------------------------------
 // CWBVH kernel body
@@ -124,7 +132,10 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
     PackedEntry spill[kGpuLocalStackEntries];  // local memory, apart from the stack object (gpu_stack.h)
     GpuStack stack(warp_stack_base + lane, spill);
 
-    __shared__ uint32_t s_ray_id[kCwbvhBlockThreads];  // read only when the hit is written
+    // The ray id is read only when the hit is written: in shared memory where the deferral
+    // needs the register (kDeferHits), else in a register.
+    __shared__ uint32_t s_ray_id[kCwbvhBlockThreads];
+    uint32_t ray_id_reg = 0;
     CwbvhLane<kTest> l(Ray{{0.0f, 0.0f, 0.0f}, 0.0f, {1.0f, 1.0f, 1.0f}, 0.0f});
     // Statistics variant: the per-lane counters live in shared memory, not in two
     // registers the production variant does not have (keeps the counting variant
@@ -180,7 +191,7 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                 }
                 h = Hit{l.tmax, uv.x, uv.y, load_triangle_prim(p.tris + l.hit_tri)};
             }
-            const uint32_t ray_id = s_ray_id[threadIdx.x];
+            const uint32_t ray_id = kDeferHits && kTest == TriangleTest::kWatertight ? s_ray_id[threadIdx.x] : ray_id_reg;
             store_hit(p.hits + ray_id, h);
             if (p.status) p.status[ray_id] = status;
             if (status == TraceStatus::kStackOverflow) count_rare(&p.work->overflows);
@@ -199,7 +210,10 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
             if (state == kIdle) {
                 const uint32_t id = base + __popc(idle & lanemask_lt(lane));
                 if (id < p.ray_count) {
-                    s_ray_id[threadIdx.x] = id;
+                    if constexpr (kDeferHits && kTest == TriangleTest::kWatertight)
+                        s_ray_id[threadIdx.x] = id;
+                    else
+                        ray_id_reg = id;
                     const Ray ray = load_ray(p.rays + id);
                     if (!ray_is_traceable(ray) || p.node_count == 0) {
                         store_hit(p.hits + id, make_miss());
@@ -207,8 +221,10 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                         count_rare(&p.work->invalid);
                     } else {
                         l = CwbvhLane<kTest>(ray, p.node_scale);
-                        save_rows(l, s_wt);
-                        s_tlo[threadIdx.x] = l.tmax;
+                        if constexpr (kDeferHits && kTest == TriangleTest::kWatertight) {
+                            save_rows(l, s_wt);
+                            s_tlo[threadIdx.x] = l.tmax;
+                        }
                         stack.clear();
                         state = kRunning;
                     }
