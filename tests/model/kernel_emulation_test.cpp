@@ -14,6 +14,8 @@
 #include <cstring>
 #include <vector>
 
+#include "cwbvh/compiler/core.h"
+#include "cwbvh/compiler/emit.h"
 #include "cwbvh/kernels/traverse_gpu.h"
 #include "cwbvh/kernels/traverse_gpu_bvh2.h"
 #include "cwbvh/kernels/warp_model.h"
@@ -158,6 +160,73 @@ TEST(KernelEmulation, FourWarpsOfABlockGiveTheReferenceHits) {
                                        unsigned(gpu::kCwbvhWarpsPerBlock));
         expect_same_hits(k.hits, reference(f, mode, TriangleTest::kWatertight), mode);
         EXPECT_EQ(count_status(k.status, TraceStatus::kOk), f.rays.size() - 1);
+    }
+}
+
+/// A flat 8 x 8 grid of quads, two exact duplicates of it and two coplanar copies shifted by
+/// fractions of a cell: hits at equal or nearly equal t, where the float bounds of a deferred
+/// hit overlap the next candidate's and the kernel takes its rare paths (a deferred hit
+/// finished inside a triangle round, the candidate tested again in the next round).
+/// Rays: camera rays from above, at slants.
+Fixture coplanar_fixture() {
+    compiler::Scene scene;
+    const int n = 8;
+    for (int c = 0; c < 3; ++c) {
+        const uint32_t base = uint32_t(scene.vertices.size());
+        for (int j = 0; j <= n; ++j)
+            for (int i = 0; i <= n; ++i)
+                scene.vertices.push_back({float(i) + 0.25f * float(c), float(j) + 0.125f * float(c), 0.0f});
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                const uint32_t a = base + uint32_t(j * (n + 1) + i), b = a + 1, d = a + uint32_t(n + 1), e = d + 1;
+                const int copies = c == 0 ? 3 : 1;  // copy 0 three times: exact duplicates
+                for (int k = 0; k < copies; ++k) {
+                    scene.indices.push_back({a, b, e});
+                    scene.indices.push_back({a, e, d});
+                }
+            }
+    }
+    for (uint32_t t = 0; t < uint32_t(scene.indices.size()); ++t) scene.sources.push_back({0, 0, t, 0});
+    scene.input_triangles = scene.indices.size();
+    compiler::CoreOptions core;
+    compiler::EmitResult encoded;
+    EXPECT_TRUE(compiler::compile_scene(scene, core, encoded).ok());
+    Fixture x;
+    x.scene = SceneData::copy_of(compiler::scene_sections(scene, encoded));
+    const int w = 24;
+    for (int j = 0; j < w; ++j)
+        for (int i = 0; i < w; ++i) {
+            Ray r{};
+            r.org[0] = 0.5f + 9.0f * float(i) / float(w);
+            r.org[1] = 0.5f + 9.0f * float(j) / float(w);
+            r.org[2] = 3.0f;
+            r.dir[0] = 0.0625f * float((i % 5) - 2);
+            r.dir[1] = 0.03125f * float((j % 7) - 3);
+            r.dir[2] = -1.0f;
+            r.tmin = 0.0f;
+            r.tmax = kInfinity;
+            x.rays.push_back(r);
+        }
+    return x;
+}
+
+TEST(KernelEmulation, DeferredHitsOnACoplanarStackAsTheWarpModel) {
+    const Fixture f = coplanar_fixture();
+    for (HitMode mode : {HitMode::kClosest, HitMode::kAny}) {
+        SCOPED_TRACE(testing::Message() << "mode " << int(mode));
+        std::vector<Hit> model_hits;
+        const WarpModelStats s = run_model(f.scene.nodes, f, TriangleTest::kWatertight, mode, model_hits);
+        const KernelRun k = run_kernel(f.scene.nodes, f, TriangleTest::kWatertight, mode, true);
+        expect_bitwise_equal(k.hits, model_hits);
+        EXPECT_EQ(k.work.nodes, s.lane_node_steps);
+        EXPECT_EQ(k.work.triangles, s.lane_tri_tests);
+        expect_same_hits(k.hits, reference(f, mode, TriangleTest::kWatertight), mode);
+        EXPECT_EQ(s.finalize_failures, 0u);
+        EXPECT_GT(s.lane_deferred_hits, 0u);
+        EXPECT_GT(s.lane_finalized, 0u);
+        if (mode == HitMode::kClosest) {
+            EXPECT_GT(s.lane_prev_finished, 0u) << "a deferred hit finished inside a round";
+        }
     }
 }
 

@@ -72,7 +72,10 @@ TEST(WarpModel, DeferredHitsGiveTheReferencesHits) {
             EXPECT_EQ(s.finalize_failures, 0u);
             EXPECT_GT(s.lane_deferred_hits, s.hits / 2) << "most hits are decided in float";
             EXPECT_LT(s.lane_whole_tests * 10, s.lane_deferred_hits) << "the double path became rare";
-            EXPECT_EQ(s.lane_finalized + s.lane_prev_finished <= s.lane_deferred_hits, true);
+            EXPECT_LE(s.lane_finalized + s.lane_prev_finished, s.lane_deferred_hits);
+            // Finished at refills; the rare ways (float undecided: the whole test, a deferred hit
+            // finished inside a round) do not occur on this scene: tests/stress/cwbvh_warp_stress_test.cpp.
+            EXPECT_GT(s.lane_finalized, 0u);
             o.defer_hits = false;
             std::vector<Hit> plain;
             const WarpModelStats k = run(f, o, plain);

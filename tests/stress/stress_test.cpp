@@ -214,34 +214,6 @@ Mesh soup_mesh(const std::vector<TriangleRecord>& tris) {
     return m;
 }
 
-/// Rays through the grid's interior vertices and edge midpoints exactly
-/// (integer and half-integer points; z of the point read from the mesh, slopes
-/// dyadic so that org + 4 dir is the point exactly).
-std::vector<Ray> grid_point_rays(const Mesh& m, int n) {
-    std::vector<Ray> rays;
-    auto z_at = [&](int i, int j) { return m.v[size_t(j * (n + 1) + i) * 3 + 2]; };
-    const float slopes[][2] = {{0.125f, 0.25f}, {-0.375f, 0.0f}, {0.0f, 0.0f}, {0.5f, -0.5f}};
-    int k = 0;
-    for (int j = 1; j < n; ++j)
-        for (int i = 1; i < n; ++i)
-            for (int e = 0; e < 3; ++e) {  // vertex, +x edge midpoint, diagonal-free +y edge midpoint
-                const float px = float(i) + (e == 1 ? 0.5f : 0.0f), py = float(j) + (e == 2 ? 0.5f : 0.0f);
-                // The point lies on the mesh only where the segment is straight in z: use vertices,
-                // and midpoints of edges whose ends have equal z.
-                float pz = z_at(i, j);
-                if (e == 1 && z_at(i + 1, j) != pz) continue;
-                if (e == 2 && z_at(i, j + 1) != pz) continue;
-                const float* s = slopes[k++ % 4];
-                const float d[3] = {s[0], s[1], -1.0f};
-                const float o[3] = {px - 4 * d[0], py - 4 * d[1], pz + 4.0f};
-                rays.push_back(test::make_ray(o, d));
-                const float d2[3] = {-d[0], -d[1], 1.0f};  // from below
-                const float o2[3] = {px - 4 * d2[0], py - 4 * d2[1], pz - 4.0f};
-                rays.push_back(test::make_ray(o2, d2));
-            }
-    return rays;
-}
-
 class StressTest : public ::testing::Test {
 protected:
     static void SetUpTestSuite() { print_tally_header(); }

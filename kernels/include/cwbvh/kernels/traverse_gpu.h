@@ -191,7 +191,8 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                 }
                 h = Hit{l.tmax, uv.x, uv.y, load_triangle_prim(p.tris + l.hit_tri)};
             }
-            const uint32_t ray_id = kDeferHits && kTest == TriangleTest::kWatertight ? s_ray_id[threadIdx.x] : ray_id_reg;
+            const uint32_t ray_id =
+                kDeferHits && kTest == TriangleTest::kWatertight ? s_ray_id[threadIdx.x] : ray_id_reg;
             store_hit(p.hits + ray_id, h);
             if (p.status) p.status[ray_id] = status;
             if (status == TraceStatus::kStackOverflow) count_rare(&p.work->overflows);

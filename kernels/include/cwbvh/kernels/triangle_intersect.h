@@ -324,8 +324,10 @@ CWBVH_HD CWBVH_INLINE RangeVerdict watertight_range_interval(const WatertightRay
     if (tmin >= 0.0f && ah < mul_rn(tmin, bl)) return RangeVerdict::kMiss;  // near
     if (!(a > 0.0f)) return RangeVerdict::kUndecided;  // T may be <= 0 (or NaN)
     // bl >= 2^-149 here: dp > ed, and a difference of floats is a multiple of 2^-149.
-    lo = bits_to_float(float_to_bits(bits_to_float(float_to_bits(a) - 1u) / bits_to_float(float_to_bits(bh) + 1u)) - 1u);
-    hi = bits_to_float(float_to_bits(bits_to_float(float_to_bits(ah) + 1u) / bits_to_float(float_to_bits(bl) - 1u)) + 1u);
+    const float a_lo = bits_to_float(float_to_bits(a) - 1u), b_hi = bits_to_float(float_to_bits(bh) + 1u);
+    const float a_hi = bits_to_float(float_to_bits(ah) + 1u), b_lo = bits_to_float(float_to_bits(bl) - 1u);
+    lo = bits_to_float(float_to_bits(a_lo / b_hi) - 1u);
+    hi = bits_to_float(float_to_bits(a_hi / b_lo) + 1u);
     const bool inside = lo >= tmin && lo >= 7.8886090522101181e-31f /* 2^-100 */ && hi <= tlo &&
                         hi <= 3.4028234663852886e38f;
     return inside ? RangeVerdict::kInside : RangeVerdict::kUndecided;
@@ -403,8 +405,9 @@ CWBVH_HD CWBVH_INLINE TriangleHit watertight_finish(const WatertightRay& w, cons
     const double nx = sub_rn(mul_rn(e1y, e2z), mul_rn(e1z, e2y));
     const double ny = sub_rn(mul_rn(e1z, e2x), mul_rn(e1x, e2z));
     const double nz = sub_rn(mul_rn(e1x, e2y), mul_rn(e1y, e2x));
-    const double num = add_rn(add_rn(mul_rn(nx, sub_rn(px, double(w.org[0]))), mul_rn(ny, sub_rn(py, double(w.org[1])))),
-                              mul_rn(nz, sub_rn(pz, double(w.org[2]))));
+    const double num = add_rn(
+        add_rn(mul_rn(nx, sub_rn(px, double(w.org[0]))), mul_rn(ny, sub_rn(py, double(w.org[1])))),
+        mul_rn(nz, sub_rn(pz, double(w.org[2]))));
     const double den = add_rn(add_rn(mul_rn(nx, double(w.dir[0])), mul_rn(ny, double(w.dir[1]))),
                               mul_rn(nz, double(w.dir[2])));
     TriangleHit out;
