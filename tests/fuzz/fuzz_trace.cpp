@@ -151,6 +151,13 @@ void check_model(const char* who, const WarpModelStats& s, const std::vector<Ray
                      (unsigned long long)s.invalid_rays, untraceable);
         fail("warp model status", 0);
     }
+    // A deferred hit (cwbvh_lane.h) the whole test does not confirm bit for bit: the float
+    // bounds are wrong for some triangle, whatever the file holds.
+    if (s.finalize_failures != 0) {
+        std::fprintf(stderr, "%s: %llu deferred hits not confirmed by the whole test\n", who,
+                     (unsigned long long)s.finalize_failures);
+        fail("deferred hit", 0);
+    }
 }
 
 void compare(const char* who, const std::vector<Hit>& ref, const std::vector<Hit>& other, bool any_hit) {

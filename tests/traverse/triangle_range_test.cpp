@@ -57,6 +57,7 @@ struct Tally {
     uint64_t interval_verdict_differs = 0;  ///< its kMiss differs from watertight_range_miss
     uint64_t interval_inside = 0;           ///< kInside with agreeing, nonzero edge signs
     uint64_t interval_wrong = 0;            ///< ... where the whole test missed or its t left [lo, hi]
+    uint64_t tlo_inside = 0;                ///< kInside with a tlo below tmax
 };
 
 /// watertight_range_interval on the same range: its kMiss is watertight_range_miss's
@@ -67,6 +68,17 @@ struct Tally {
 void check_interval(const WatertightRay& w, const float* v0, const float* v1, const float* v2, float tmin,
                     float tmax, bool miss, Tally& tally) {
     float lo = NAN, hi = NAN;
+    // A lower bound tlo of a deferred closest hit below tmax: kInside needs hi <= tlo, and
+    // tlo changes nothing else (kMiss is the stage's answer for [tmin, tmax]).
+    if (std::isfinite(tmax) && tmax > 0.0f) {
+        for (const float tlo : {next_down(tmax), tmax * 0.99951171875f, tmax * 0.5f}) {
+            float l2 = NAN, h2 = NAN;
+            const RangeVerdict vt = watertight_range_interval(w, v0, v1, v2, tmin, tlo, tmax, l2, h2);
+            if ((vt == RangeVerdict::kMiss) != miss) ++tally.interval_verdict_differs;
+            tally.tlo_inside += vt == RangeVerdict::kInside;
+            if (vt == RangeVerdict::kInside && !(h2 <= tlo && l2 >= tmin)) ++tally.interval_wrong;
+        }
+    }
     const RangeVerdict v = watertight_range_interval(w, v0, v1, v2, tmin, tmax, tmax, lo, hi);
     if ((v == RangeVerdict::kMiss) != miss) ++tally.interval_verdict_differs;
     WatertightEdges e;
@@ -168,11 +180,12 @@ TEST(TriangleRange, RejectsOnlyWhatLiesOutsideTheRange) {
                 (unsigned long long)tally.far_decided, (unsigned long long)tally.far_cases);
     EXPECT_EQ(tally.wrong, 0u);
     EXPECT_EQ(tally.conflicts, 0u);
-    std::printf("interval: kInside %llu, wrong %llu, kMiss differing from the stage %llu\n",
-                (unsigned long long)tally.interval_inside, (unsigned long long)tally.interval_wrong,
-                (unsigned long long)tally.interval_verdict_differs);
+    std::printf("interval: kInside %llu (%llu with tlo < tmax), wrong %llu, kMiss differing from the stage %llu\n",
+                (unsigned long long)tally.interval_inside, (unsigned long long)tally.tlo_inside,
+                (unsigned long long)tally.interval_wrong, (unsigned long long)tally.interval_verdict_differs);
     EXPECT_EQ(tally.interval_wrong, 0u);
     EXPECT_EQ(tally.interval_verdict_differs, 0u);
+    EXPECT_GT(tally.tlo_inside, 0u);
     // Deferring must be worth it: most ranges that hold T with room to spare are decided.
     EXPECT_GT(tally.interval_inside, tally.cases / 20);
     // The stage must be worth its instructions: it decides most ranges that end well

@@ -9,9 +9,11 @@
 //
 // A lane's state is kept small on purpose (issue 10: 128 registers capped the
 // kernel at 25 % occupancy):
-//   - the closest hit so far is the TRIS index of its triangle plus tmax (which IS
-//     the hit distance); its u, v go to shared memory at each hit (test_triangle's
-//     TriangleHit; the kernel's s_uv, the warp model's Lane), and the primitive id is
+//   - the closest hit so far is the TRIS index of its triangle plus tmax (the hit
+//     distance once known; while the hit is deferred, an upper bound, with the lower
+//     bound tlo beside the lane: test_triangle_deferred); its u, v go to shared memory
+//     at each hit the whole test found (the kernel's s_uv, the warp model's Lane) or are
+//     computed when a deferred hit is finished (finalize_hit), and the primitive id is
 //     read from TRIS when the ray ends (until 2026-11-26 the whole triangle test ran a
 //     second time there instead: ~200 instructions per hitting ray);
 //   - no Ray copy survives set-up: NodeRay and the triangle test's per-ray
@@ -174,8 +176,8 @@ enum class PrevHit : uint32_t { kNone = 0, kFinished = 1, kFailed = 2 };
 
 /// The whole watertight test of TRIS[index] for lane l over [l.tmin, tmax], as the host
 /// runs it (`tris` in memory): the `whole` argument of finalize_hit and
-/// test_triangle_deferred. The kernel passes its own, which reads the triangle through the
-/// read-only cache and calls a function that is not inlined (traverse_gpu.h).
+/// test_triangle_deferred. The kernel passes its own (DeviceWholeTest, traverse_gpu.h), which
+/// reads the triangle through the read-only cache.
 template <TriangleTest kTest>
 struct HostWholeTest {
     const CwbvhLane<kTest>* l;
@@ -223,7 +225,10 @@ CWBVH_HD CWBVH_INLINE void finalize_hit(CwbvhLane<kTest>& l, float& tlo, const T
 /// and on kWholeMiss when a deferred hit was finished.
 /// The hit found is the reference's (traverse.h): a triangle is taken exactly when its
 /// float t is <= the exact t of the closest hit so far, as there; tmax >= that t at all
-/// times, so no node or triangle the reference tests is culled. The fast test (Moller-
+/// times, so no node or triangle the reference tests is culled. (The converse does not
+/// hold: a lane may visit a few nodes the reference culls. In a valid file that changes
+/// nothing; in a corrupt one such a node's bad child index could end the ray with
+/// kBadIndex where the reference ends it kOk.) The fast test (Moller-
 /// Trumbore, all float) has nothing to defer: it is test_triangle.
 template <TriangleTest kTest, class Whole>
 CWBVH_HD CWBVH_INLINE TriangleStep test_triangle_deferred(CwbvhLane<kTest>& l, float& tlo, const TriangleRecord& tri,

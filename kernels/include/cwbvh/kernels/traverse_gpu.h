@@ -58,9 +58,10 @@ inline constexpr int kCwbvhMinBlocksPerSm = CWBVH_CWBVH_MIN_BLOCKS;
 #define CWBVH_DEFER_HITS 1
 #endif
 /// Not before sm_80: the deferral's shared memory (the lane's tlo, ray id and nine per-ray
-/// constants, 5.6 KiB a block; 20 KiB in all) would leave a Turing SM (64 KiB) 3 resident
-/// blocks instead of 4. sm_80 and sm_90 (164 and 228 KiB) keep 6; sm_86/89 (100 KiB) run the
-/// sm_80 code with 5. The answers are the same either way.
+/// constants, 5.6 KiB a block; 19 KiB in all, 20 KiB in the statistics variants) would leave a
+/// Turing SM (64 KiB) 3 resident blocks instead of 4. sm_80 and sm_90 (164 and 228 KiB) keep 6;
+/// sm_86/89 (100 KiB) run the sm_80 code with 5 (the statistics variants with 4). The answers
+/// are the same either way.
 #if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 800
 inline constexpr bool kDeferHits = false;
 #else
@@ -142,11 +143,12 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
     // within the same 80-register budget without spills).
     __shared__ uint32_t s_counts[2][kCwbvhBlockThreads];
     if (kCount) s_counts[0][threadIdx.x] = s_counts[1][threadIdx.x] = 0;
-    // u, v of the closest hit so far, written at each hit: the ray's Hit is then tmax,
-    // these and the triangle's id, instead of a second run of the whole triangle test
-    // when the ray ends (about 200 instructions for a watertight hit; issue 18). Shared
-    // memory, not two more registers (the 80-register cap); the same values bit for bit,
-    // since the test that hit computed them.
+    // u, v of the closest hit so far, written at each hit the whole test found: the ray's
+    // Hit is then tmax, these and the triangle's id, instead of a second run of the whole
+    // triangle test when the ray ends (about 200 instructions for a watertight hit; issue
+    // 18). Shared memory, not two more registers (the 80-register cap); the same values
+    // bit for bit, since the test that hit computed them. A deferred hit has none until
+    // finalize_hit computes them at refill time.
     __shared__ float2 s_uv[kCwbvhBlockThreads];
     // The lane's tlo (cwbvh_lane.h, CwbvhLane::hit_deferred), in shared memory: a register
     // more pushed the watertight kernels past their 80 registers.

@@ -119,7 +119,9 @@ struct WarpModelStats {
     uint64_t lane_prev_finished = 0;  ///< deferred hits finished inside a round (float undecided)
     uint64_t warp_finalize_steps = 0; ///< refills that finished deferred hits (>= 1 lane)
     uint64_t lane_finalized = 0;      ///< deferred hits finished at refill time
-    uint64_t finalize_failures = 0;   ///< finalize_hit returned false: a bug (tests hold it at 0)
+    /// A deferred hit the whole test does not confirm bit for bit (t, u, v), in a round or at
+    /// a refill: a bug (the tests and cwbvh_fuzz_trace hold it at 0).
+    uint64_t finalize_failures = 0;
     uint64_t active_lane_iterations = 0;  ///< sum over iterations of lanes holding a ray
     uint64_t node_lane_hist[33] = {};     ///< warp node steps by lanes active in them
     uint64_t tri_lane_hist[33] = {};      ///< warp triangle rounds by lanes active in them
