@@ -82,7 +82,7 @@ __global__ void probe_triangle_interval(const TriangleRecord* tris, const Ray* r
     const bool pass = watertight_edges(l.tri_test.w, t.v0, t.v1, t.v2, e) &&
                       watertight_range_interval(l.tri_test.w, t.v0, t.v1, t.v2, l.tmin, l.tmax, l.tmax, lo, hi) ==
                           RangeVerdict::kInside &&
-                      abs_f(e.eu) > 0.0f && abs_f(e.ev) > 0.0f && abs_f(e.ew) > 0.0f;
+                      is_finite_nonzero_f(e.eu) && is_finite_nonzero_f(e.ev) && is_finite_nonzero_f(e.ew);
     out[threadIdx.x] = pass ? __float_as_uint(lo) ^ __float_as_uint(hi) : 0u;
 }
 

@@ -169,6 +169,36 @@ TEST(TriangleEdgeCases, HitsBeyondTheFloatRangeAreNoHits) {
 // PrimTable (ray_gen.h, the diffuse rays' hit lookup) sized its index by the largest prim:
 // records changed after validation (a mapped file rewritten in place) with a prim near 2^32
 // allocated 16 GiB (an audit). A prim at or beyond the record count is left out.
+// Vertices near 2^127 whose sheared coordinates overflow float: the whole test reported a
+// hit with u = 0 and v = NaN (inf / inf in its double u, v path; found by the 2026-11-27
+// review of the deferred hits). Such a triangle is no hit now (spec/rays.md: a ray whose
+// v - o overflows may miss), and whatever the test reports carries finite u, v.
+TEST(TriangleEdgeCases, OverflowedShearIsNoHitRatherThanANaNBarycentric) {
+    Ray r{};
+    const float org[3] = {-0x1.16bb42p+126f, -0x1.455364p+4f, 0x1.cec25cp-4f};
+    const float dir[3] = {0x1.3e41dap+127f, 0x1.46453ep+4f, -0x1.847954p-4f};
+    for (int a = 0; a < 3; ++a) {
+        r.org[a] = org[a];
+        r.dir[a] = dir[a];
+    }
+    r.tmin = 0.0f;
+    r.tmax = INFINITY;
+    const float v0[3] = {0x1.65784p+126f, 0x1.e3b21cp-5f, 0x1.2a83dcp-6f};
+    const float v1[3] = {0x1.dc9c42p+127f, 0x1.f5441ap-5f, -0x1.20d20ap-3f};
+    const float v2[3] = {0x1.65784p+126f, 0x1.7d9544p-5f, 0x1.6d52ep-9f};
+    const WatertightRay w = make_watertight_ray(r);
+    WatertightEdges e;
+    ASSERT_TRUE(watertight_edges(w, v0, v1, v2, e)) << "the float edge stage lets it through";
+    EXPECT_FALSE(is_finite_f(e.eu) && is_finite_f(e.ev) && is_finite_f(e.ew)) << "a sheared coordinate overflowed";
+    TriangleHit th{};
+    EXPECT_FALSE(intersect_triangle_watertight(w, v0, v1, v2, 0.0f, INFINITY, th));
+    // The deferral never certifies it (its edge functions are not all finite).
+    float lo = 0, hi = 0;
+    const RangeVerdict v = watertight_range_interval(w, v0, v1, v2, 0.0f, INFINITY, INFINITY, lo, hi);
+    EXPECT_FALSE(v == RangeVerdict::kInside && is_finite_nonzero_f(e.eu) && is_finite_nonzero_f(e.ev) &&
+                 is_finite_nonzero_f(e.ew));
+}
+
 TEST(PrimTableBounds, AnOutOfRangePrimIsLeftOut) {
     std::vector<TriangleRecord> tris(3);
     for (uint32_t i = 0; i < 3; ++i) tris[i].prim = i;

@@ -82,8 +82,8 @@ void check_interval(const WatertightRay& w, const float* v0, const float* v1, co
     const RangeVerdict v = watertight_range_interval(w, v0, v1, v2, tmin, tmax, tmax, lo, hi);
     if ((v == RangeVerdict::kMiss) != miss) ++tally.interval_verdict_differs;
     WatertightEdges e;
-    if (v != RangeVerdict::kInside || !watertight_edges(w, v0, v1, v2, e) || !(std::fabs(e.eu) > 0) ||
-        !(std::fabs(e.ev) > 0) || !(std::fabs(e.ew) > 0))
+    if (v != RangeVerdict::kInside || !watertight_edges(w, v0, v1, v2, e) || !is_finite_nonzero_f(e.eu) ||
+        !is_finite_nonzero_f(e.ev) || !is_finite_nonzero_f(e.ew))
         return;
     ++tally.interval_inside;
     TriangleHit a{}, b{};

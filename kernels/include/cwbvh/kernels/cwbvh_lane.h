@@ -212,7 +212,7 @@ CWBVH_HD CWBVH_INLINE void finalize_hit(CwbvhLane<kTest>& l, float& tlo, const T
 /// hit costs a float interval, and the warp finishes its deferred hits together when it
 /// refills (3 % of the rounds and 0.08 refills a ray on that ray set: `cwbvh model`).
 ///   - edge signs mixed, or T certainly outside [tmin, tmax]: kMiss;
-///   - all three edge functions nonzero and not NaN, and watertight_range_interval kInside (float t
+///   - all three edge functions finite and nonzero, and watertight_range_interval kInside (float t
 ///     certainly in [lo, hi], tmin <= lo, hi <= tlo: closer than the closest hit, deferred
 ///     or not): the new closest hit, deferred (tmax = hi, tlo = lo): kDeferred;
 ///   - otherwise the whole test (`whole`: TRIS index, tmax -> hit, t, u, v) decides,
@@ -240,10 +240,11 @@ CWBVH_HD CWBVH_INLINE TriangleStep test_triangle_deferred(CwbvhLane<kTest>& l, f
         for (int a = 0; a < 3; ++a) w.org[a] = l.nray.org[a];  // as with_org
         WatertightEdges e;
         if (!watertight_edges(w, tri.v0, tri.v1, tri.v2, e)) return TriangleStep::kMiss;
-        // Edge functions that are not 0 and not NaN have the exact signs (rounding is
-        // monotone; an overflow to +-inf keeps the sign, inf - inf is NaN), so the whole
-        // test's double recomputation cannot reject the triangle (watertight_finish).
-        const bool nonzero = abs_f(e.eu) > 0.0f && abs_f(e.ev) > 0.0f && abs_f(e.ew) > 0.0f;
+        // Edge functions that are finite and not 0 have the exact signs of the sheared
+        // coordinates' (rounding is monotone), and those coordinates are finite (one of
+        // +-inf makes an edge function +-inf or NaN), so the whole test's double path
+        // cannot reject the triangle (watertight_finish).
+        const bool nonzero = is_finite_nonzero_f(e.eu) && is_finite_nonzero_f(e.ev) && is_finite_nonzero_f(e.ew);
         float lo, hi;
         const RangeVerdict v = watertight_range_interval(w, tri.v0, tri.v1, tri.v2, l.tmin, tlo, l.tmax, lo, hi);
         if (v == RangeVerdict::kMiss) return TriangleStep::kMiss;

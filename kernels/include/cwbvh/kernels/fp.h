@@ -37,6 +37,8 @@ inline constexpr float kFloatMin = 1.17549435e-38f;  ///< FLT_MIN = 2^-126
 CWBVH_HD CWBVH_INLINE bool is_nan_f(float x) { return (float_to_bits(x) & 0x7FFFFFFFu) > 0x7F800000u; }
 /// True for every value except +-inf and NaN.
 CWBVH_HD CWBVH_INLINE bool is_finite_f(float x) { return (float_to_bits(x) & 0x7F800000u) != 0x7F800000u; }
+/// x is finite and not +-0: the bits of |x| lie in [1, FLT_MAX's] (one subtraction, one compare).
+CWBVH_HD CWBVH_INLINE bool is_finite_nonzero_f(float x) { return (float_to_bits(x) & 0x7FFFFFFFu) - 1u < 0x7F7FFFFFu; }
 CWBVH_HD CWBVH_INLINE float abs_f(float x) { return bits_to_float(float_to_bits(x) & 0x7FFFFFFFu); }
 CWBVH_HD CWBVH_INLINE double abs_d(double x) { return x < 0 ? -x : x; }
 /// min/max for non-NaN operands (the traversal never feeds them NaN: see node_intersect.h).

@@ -380,7 +380,10 @@ CWBVH_HD CWBVH_INLINE bool intersect_triangle_watertight(const WatertightRay& w,
     const double dw = sub_rn(mul_rn(double(bx), double(ay)), mul_rn(double(by), double(ax)));
     if ((du < 0.0 || dv < 0.0 || dw < 0.0) && (du > 0.0 || dv > 0.0 || dw > 0.0)) return false;
     const double ddet = add_rn(add_rn(du, dv), dw);
-    if (ddet == 0.0 || ddet != ddet) return false;  // ray in the triangle's plane, or NaN
+    // 0: the ray in the triangle's plane. NaN or +-inf: a sheared coordinate overflowed
+    // float (v - o beyond ~2^127), where u, v would be NaN (inf / inf): no hit, as
+    // spec/rays.md allows where v - o overflows.
+    if (ddet == 0.0 || !(abs_d(ddet) <= 1.7976931348623157e308)) return false;
     out.t = ft;
     out.u = float(dv / ddet);
     out.v = float(dw / ddet);
