@@ -207,10 +207,11 @@ CWBVH_HD CWBVH_INLINE void finalize_hit(CwbvhLane<kTest>& l, float& tlo, const T
 /// Triangle step, second half, as the GPU kernel runs it (issue 18): the watertight
 /// test's double-precision hit distance and its u, v are deferred while float alone
 /// proves the triangle the closest hit so far. Most triangles whose edge signs agree
-/// are hits (sponza_dabrovic nave, diffuse bounce 1: 403k of 407k past the float range
-/// stage), and the warp ran the double path in 73 % of its triangle rounds; a deferred
-/// hit costs a float interval, and the warp finishes its deferred hits together when it
-/// refills (3 % of the rounds and 0.08 refills a ray on that ray set: `cwbvh model`).
+/// are hits (sponza_dabrovic nave, diffuse bounce 1, 512x512: 403k of 407k past the float
+/// range stage), and the warp ran the double path in 67 % of its triangle rounds (480x270);
+/// a deferred hit costs a float interval, and the warp finishes its deferred hits together
+/// when it refills (then 6 % of the rounds and 0.07 refills a ray: `cwbvh model`,
+/// bench/results/model/2026-11-27-deferred-hits).
 ///   - edge signs mixed, or T certainly outside [tmin, tmax]: kMiss;
 ///   - all three edge functions finite and nonzero, and watertight_range_interval kInside (float t
 ///     certainly in [lo, hi], tmin <= lo, hi <= tlo: closer than the closest hit, deferred
@@ -244,11 +245,11 @@ CWBVH_HD CWBVH_INLINE TriangleStep test_triangle_deferred(CwbvhLane<kTest>& l, f
         // coordinates' (rounding is monotone), and those coordinates are finite (one of
         // +-inf makes an edge function +-inf or NaN), so the whole test's double path
         // cannot reject the triangle (watertight_finish).
-        const bool nonzero = is_finite_nonzero_f(e.eu) && is_finite_nonzero_f(e.ev) && is_finite_nonzero_f(e.ew);
+        const bool certain = is_finite_nonzero_f(e.eu) && is_finite_nonzero_f(e.ev) && is_finite_nonzero_f(e.ew);
         float lo, hi;
         const RangeVerdict v = watertight_range_interval(w, tri.v0, tri.v1, tri.v2, l.tmin, tlo, l.tmax, lo, hi);
         if (v == RangeVerdict::kMiss) return TriangleStep::kMiss;
-        if (v == RangeVerdict::kInside && nonzero) {
+        if (v == RangeVerdict::kInside && certain) {
             l.tmax = hi;
             tlo = lo;
             l.hit_tri = ti;
