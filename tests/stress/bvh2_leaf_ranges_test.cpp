@@ -33,18 +33,6 @@ namespace {
 
 using test::Mesh;
 
-std::vector<Ray> scene_rays(const File& f, size_t n_random, uint32_t cam_size, uint32_t seed) {
-    const SceneBounds& b = *f.bounds();
-    std::vector<Ray> rays = random_rays(b, n_random, seed);
-    const std::vector<Ray> primary = camera_rays(default_camera(b), cam_size, cam_size);
-    const auto nodes = f.nodes();
-    const auto tris = f.triangles();
-    const DiffuseRays d = diffuse_rays(nodes.data(), nodes.size(), tris.data(), tris.size(), primary, 1, 7, 2);
-    rays.insert(rays.end(), primary.begin(), primary.end());
-    rays.insert(rays.end(), d.rays.begin(), d.rays.end());
-    return rays;
-}
-
 struct Box {
     float lo[3], hi[3];
 };
@@ -267,13 +255,7 @@ void check_compiled(const std::string& name, const File& f, const std::vector<Ra
     expect_warp_matches_reference<TriangleTest::kWatertight, HitMode::kClosest>(name + "-legacy", legacy, tris, rays);
 }
 
-class Bvh2LeafRanges : public ::testing::Test {
-protected:
-    static void TearDownTestSuite() {
-        std::error_code ec;
-        std::filesystem::remove_all(temp_dir(), ec);
-    }
-};
+class Bvh2LeafRanges : public TempDirSuite {};
 
 TEST_F(Bvh2LeafRanges, GeneratedScenes) {
     struct Case {

@@ -95,13 +95,7 @@ void expect_model_matches_reference(const std::string& name, const File& f, cons
     }
 }
 
-class CwbvhWarpStress : public ::testing::Test {
-protected:
-    static void TearDownTestSuite() {
-        std::error_code ec;
-        std::filesystem::remove_all(temp_dir(), ec);
-    }
-};
+class CwbvhWarpStress : public TempDirSuite {};
 
 TEST_F(CwbvhWarpStress, DeferredHitsOnCoplanarStacksAndEdgeRays) {
     struct Case {
@@ -118,14 +112,7 @@ TEST_F(CwbvhWarpStress, DeferredHitsOnCoplanarStacksAndEdgeRays) {
         File f;
         std::string err;
         ASSERT_TRUE(compile_and_open(write_obj(c.mesh, c.name), std::string(c.name) + "-warp", f, err)) << err;
-        const SceneBounds& b = *f.bounds();
-        std::vector<Ray> rays = random_rays(b, 4000, 17);
-        const std::vector<Ray> primary = camera_rays(default_camera(b), 48, 48);
-        const auto nodes = f.nodes();
-        const auto tris = f.triangles();
-        const DiffuseRays d = diffuse_rays(nodes.data(), nodes.size(), tris.data(), tris.size(), primary, 1, 7, 2);
-        rays.insert(rays.end(), primary.begin(), primary.end());
-        rays.insert(rays.end(), d.rays.begin(), d.rays.end());
+        std::vector<Ray> rays = scene_rays(f, 4000, 48, 17);
         if (c.grid > 0) {
             const std::vector<Ray> edge = grid_point_rays(c.mesh, c.grid);
             rays.insert(rays.end(), edge.begin(), edge.end());

@@ -26,6 +26,7 @@
 
 #include "../result_util.h"
 #include "cwbvh/compiler/compile.h"
+#include "cwbvh/kernels/ray_gen.h"
 #include "cwbvh/loader/loader.h"
 #include "cwbvh/oracle/oracle.h"
 #include "traverse/test_scenes.h"
@@ -366,5 +367,28 @@ inline std::vector<Ray> grid_point_rays(const Mesh& m, int n) {
             }
     return rays;
 }
+
+/// Random segments (random_rays), camera rays of the default camera and their diffuse
+/// bounce-1 rays: the stress tests' ray set for a compiled scene.
+inline std::vector<Ray> scene_rays(const File& f, size_t n_random, uint32_t cam_size, uint32_t seed) {
+    const SceneBounds& b = *f.bounds();
+    std::vector<Ray> rays = random_rays(b, n_random, seed);
+    const std::vector<Ray> primary = camera_rays(default_camera(b), cam_size, cam_size);
+    const auto nodes = f.nodes();
+    const auto tris = f.triangles();
+    const DiffuseRays d = diffuse_rays(nodes.data(), nodes.size(), tris.data(), tris.size(), primary, 1, 7, 2);
+    rays.insert(rays.end(), primary.begin(), primary.end());
+    rays.insert(rays.end(), d.rays.begin(), d.rays.end());
+    return rays;
+}
+
+/// A suite whose compiled test files live under temp_dir(), removed when it ends.
+class TempDirSuite : public ::testing::Test {
+protected:
+    static void TearDownTestSuite() {
+        std::error_code ec;
+        std::filesystem::remove_all(temp_dir(), ec);
+    }
+};
 
 }  // namespace cwbvh::stress

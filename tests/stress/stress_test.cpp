@@ -214,13 +214,9 @@ Mesh soup_mesh(const std::vector<TriangleRecord>& tris) {
     return m;
 }
 
-class StressTest : public ::testing::Test {
+class StressTest : public TempDirSuite {
 protected:
     static void SetUpTestSuite() { print_tally_header(); }
-    static void TearDownTestSuite() {
-        std::error_code ec;
-        std::filesystem::remove_all(temp_dir(), ec);
-    }
 };
 
 TEST_F(StressTest, WatertightGridVerticesAndEdges) {
