@@ -91,6 +91,11 @@ private:
         float tlo = 0.0f;          ///< the lane's tlo (CwbvhLane::hit_deferred; the kernel's s_tlo)
     };
 
+    /// TRIS index -> triangle: whole_test's reader (the kernel's reads the read-only cache).
+    auto load() const {
+        return [t = tris_](uint32_t i) -> const TriangleRecord& { return t[i]; };
+    }
+
     int active_count() const {
         int n = 0;
         for (const Lane& l : lanes_) n += l.active;
@@ -146,7 +151,7 @@ private:
                 if (lane.l.hit_deferred(lane.tlo)) {
                     // finalize_hit's watertight_finish must give the whole test's t, u, v.
                     TriangleHit whole_th{};
-                    const bool whole_hit = HostWholeTest<kTest>{&lane.l, tris_}(lane.l.hit_tri, lane.l.tmax, whole_th);
+                    const bool whole_hit = whole_test(lane.l, load())(lane.l.hit_tri, lane.l.tmax, whole_th);
                     TriangleHit th;
                     finalize_hit(lane.l, lane.tlo, tris_[lane.l.hit_tri], th);
                     if (!whole_hit || std::memcmp(&whole_th, &th, sizeof th) != 0) ++s_.finalize_failures;
@@ -239,9 +244,9 @@ private:
                 PrevHit prev_state = PrevHit::kNone;
                 TriangleStep step;
                 if (o_.defer_hits) {
-                    step = test_triangle_deferred(lane.l, lane.tlo, tris_[ti], ti, HostWholeTest<kTest>{&lane.l, tris_},
-                                                  th, prev_state);
-                } else {  // the kernel as it is
+                    step = test_triangle_deferred(lane.l, lane.tlo, tris_[ti], ti, whole_test(lane.l, load()), th,
+                                                  prev_state);
+                } else {  // the kernel built without the deferral (CWBVH_DEFER_HITS=OFF; sm_75)
                     step = test_triangle(lane.l, tris_[ti], ti, th) ? TriangleStep::kExact : TriangleStep::kWholeMiss;
                     lane.tlo = lane.l.tmax;
                 }

@@ -174,18 +174,22 @@ CWBVH_HD CWBVH_INLINE bool is_hit(TriangleStep s) { return uint32_t(s) >= uint32
 /// What test_triangle_deferred did with a deferred closest hit it had to finish.
 enum class PrevHit : uint32_t { kNone = 0, kFinished = 1, kFailed = 2 };
 
-/// The whole watertight test of TRIS[index] for lane l over [l.tmin, tmax], as the host
-/// runs it (`tris` in memory): the `whole` argument of finalize_hit and
-/// test_triangle_deferred. The kernel passes its own (DeviceWholeTest, traverse_gpu.h), which
-/// reads the triangle through the read-only cache.
-template <TriangleTest kTest>
-struct HostWholeTest {
-    const CwbvhLane<kTest>* l;
-    const TriangleRecord* tris;
+/// The whole triangle test of TRIS[index] over [tmin, tmax] for a lane (whole_test): the
+/// `whole` argument of test_triangle_deferred. `load` reads a triangle by TRIS index (the
+/// kernel through the read-only cache, the warp model from memory).
+template <TriangleTest kTest, class Load>
+struct WholeTest {
+    TriangleIntersector<kTest> test;
+    float tmin;
+    Load load;
     CWBVH_HD bool operator()(uint32_t index, float tmax, TriangleHit& th) const {
-        return l->tri_test.with_org(l->nray.org)(tris[index], l->tmin, tmax, th);
+        return test(load(index), tmin, tmax, th);
     }
 };
+template <TriangleTest kTest, class Load>
+CWBVH_HD CWBVH_INLINE WholeTest<kTest, Load> whole_test(const CwbvhLane<kTest>& l, const Load& load) {
+    return WholeTest<kTest, Load>{l.tri_test.with_org(l.nray.org), l.tmin, load};
+}
 
 /// Finishes a deferred hit (l.hit_deferred(tlo)) at refill time: its t, u, v from its
 /// triangle `tri` (TRIS index l.hit_tri) by watertight_finish, which gives what the whole

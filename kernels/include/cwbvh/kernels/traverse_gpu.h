@@ -72,26 +72,12 @@ inline constexpr bool kDeferHits = CWBVH_DEFER_HITS != 0;
 // CWBVH kernel body
 // ---------------------------------------------------------------------------
 
-/// test_triangle_deferred's `whole` on the device (the host's: HostWholeTest): the whole
-/// watertight test of a triangle read through the read-only cache.
-template <TriangleTest kTest>
-struct DeviceWholeTest {
-    TriangleIntersector<kTest> test;
-    float tmin;
-    const TriangleRecord* tris;
-    __device__ __forceinline__ DeviceWholeTest(const CwbvhLane<kTest>& l, const TriangleRecord* t)
-        : test(l.tri_test.with_org(l.nray.org)), tmin(l.tmin), tris(t) {}
-    __device__ __forceinline__ bool operator()(uint32_t index, float tmax, TriangleHit& th) const {
-        return test(load_triangle(tris + index), tmin, tmax, th);
-    }
-};
-
 /// The watertight test's per-ray rows (WatertightRay: dir, mx, my) to and from shared
 /// memory, one float per lane in each of nine rows (no bank conflicts). The fast test's
 /// constants stay in registers.
 template <TriangleTest kTest>
 __device__ __forceinline__ void save_rows(const CwbvhLane<kTest>& l, float (*s)[kCwbvhBlockThreads]) {
-    if constexpr (kDeferHits && kTest == TriangleTest::kWatertight) {
+    if constexpr (kTest == TriangleTest::kWatertight) {
         for (int a = 0; a < 3; ++a) {
             s[a][threadIdx.x] = l.tri_test.w.dir[a];
             s[3 + a][threadIdx.x] = l.tri_test.w.mx[a];
@@ -101,7 +87,7 @@ __device__ __forceinline__ void save_rows(const CwbvhLane<kTest>& l, float (*s)[
 }
 template <TriangleTest kTest>
 __device__ __forceinline__ void load_rows(CwbvhLane<kTest>& l, float (*s)[kCwbvhBlockThreads]) {
-    if constexpr (kDeferHits && kTest == TriangleTest::kWatertight) {
+    if constexpr (kTest == TriangleTest::kWatertight) {
         for (int a = 0; a < 3; ++a) {
             l.tri_test.w.dir[a] = s[a][threadIdx.x];
             l.tri_test.w.mx[a] = s[3 + a][threadIdx.x];
@@ -129,6 +115,7 @@ __device__ __forceinline__ void count_rare(unsigned long long* total) { atomicAd
 template <TriangleTest kTest, HitMode kMode, bool kCount>
 __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, PackedEntry* warp_stack_base) {
     const unsigned lane = threadIdx.x & (kWarpSize - 1);
+    constexpr bool kDefer = kDeferHits && kTest == TriangleTest::kWatertight;  // the fast test defers nothing
     static_assert(GpuStack::kStride == kWarpSize, "the shared stack layout is [warp][entry][lane]");
     PackedEntry spill[kGpuLocalStackEntries];  // local memory, apart from the stack object (gpu_stack.h)
     GpuStack stack(warp_stack_base + lane, spill);
@@ -183,7 +170,7 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
             Hit h = make_miss();
             if (l.hit_tri != kNoTriangle) {
                 float2 uv = s_uv[threadIdx.x];
-                if constexpr (kDeferHits && kTest == TriangleTest::kWatertight) {  // the fast test defers nothing
+                if constexpr (kDefer) {
                     if (l.hit_deferred(s_tlo[threadIdx.x])) {
                         load_rows(l, s_wt);
                         TriangleHit th;
@@ -193,8 +180,7 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                 }
                 h = Hit{l.tmax, uv.x, uv.y, load_triangle_prim(p.tris + l.hit_tri)};
             }
-            const uint32_t ray_id =
-                kDeferHits && kTest == TriangleTest::kWatertight ? s_ray_id[threadIdx.x] : ray_id_reg;
+            const uint32_t ray_id = kDefer ? s_ray_id[threadIdx.x] : ray_id_reg;
             store_hit(p.hits + ray_id, h);
             if (p.status) p.status[ray_id] = status;
             if (status == TraceStatus::kStackOverflow) count_rare(&p.work->overflows);
@@ -213,7 +199,7 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
             if (state == kIdle) {
                 const uint32_t id = base + __popc(idle & lanemask_lt(lane));
                 if (id < p.ray_count) {
-                    if constexpr (kDeferHits && kTest == TriangleTest::kWatertight)
+                    if constexpr (kDefer)
                         s_ray_id[threadIdx.x] = id;
                     else
                         ray_id_reg = id;
@@ -224,7 +210,7 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                         count_rare(&p.work->invalid);
                     } else {
                         l = CwbvhLane<kTest>(ray, p.node_scale);
-                        if constexpr (kDeferHits && kTest == TriangleTest::kWatertight) {
+                        if constexpr (kDefer) {
                             save_rows(l, s_wt);
                             s_tlo[threadIdx.x] = l.tmax;
                         }
@@ -273,12 +259,13 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                         } else {
                             if (kCount) ++s_counts[1][threadIdx.x];
                             TriangleHit th;
-                            if constexpr (kDeferHits && kTest == TriangleTest::kWatertight) {
+                            if constexpr (kDefer) {
                                 load_rows(l, s_wt);
                                 PrevHit prev_state;
                                 const TriangleStep step = test_triangle_deferred(
                                     l, s_tlo[threadIdx.x], load_triangle(p.tris + ti), ti,
-                                    DeviceWholeTest<kTest>(l, p.tris), th, prev_state);
+                                    whole_test(l, [&](uint32_t i) { return load_triangle(p.tris + i); }), th,
+                                    prev_state);
                                 if (step == TriangleStep::kExact || prev_state != PrevHit::kNone)
                                     s_uv[threadIdx.x] = make_float2(th.u, th.v);
                                 if (kMode == HitMode::kAny && is_hit(step)) finish(TraceStatus::kOk);
