@@ -35,16 +35,13 @@
 # enclosed ones; scene key = the .cwbvh file's stem), 2048x2048, primary + diffuse bounces 1-4.
 # Ray sets of fewer than 1M rays are printed but kept out of the geometric means.
 # Time on the 16-core GPU machine, all nine scenes: about 6 minutes expected (build, compile,
-# CPU reference, --repeat 3 on the three kernels, sanitizer; estimated from the CPU side
+# CPU reference, --repeat 3 on the four kernels, sanitizer; estimated from the CPU side
 # here, bench/README.md, "GPU: the three-way benchmark"): every scene keeps 2048x2048.
 #
 # usage: scripts/gpu-check.sh [extra cwbvh_gpu_check args, e.g. --width 1024 --height 1024 --repeat 9]
 # env:   BUILD=build-gpu  ARCH=(CMAKE_CUDA_ARCHITECTURES, default: the project's 75/90 set)
 #        MIN_BLOCKS=N: the CWBVH kernel's __launch_bounds__ minimum blocks per SM (default 6 =
 #        80 registers; 8 = 64): register/occupancy experiments, use a separate BUILD folder
-#        DEFER_HITS=0: the watertight CWBVH kernels without deferred hit distances (the kernel
-#        before issue 18's deferral; the warp model: cwbvh model --no-defer-hits), for an A/B
-#        run; use a separate BUILD folder
 #        CSV=path of the results table (default $BUILD/gpu_check.csv; commit a copy under
 #        bench/results/gpu/ with the command and the device)
 #        COMPILE_THREADS=N cwbvhc threads (default: nproc)
@@ -77,7 +74,6 @@ command -v ninja >/dev/null && gen=(-G Ninja)
 arch_args=()
 [[ -n "${ARCH:-}" ]] && arch_args=(-DCMAKE_CUDA_ARCHITECTURES="$ARCH")
 [[ -n "${MIN_BLOCKS:-}" ]] && arch_args+=(-DCWBVH_CWBVH_MIN_BLOCKS="$MIN_BLOCKS")
-[[ "${DEFER_HITS:-1}" == 0 ]] && arch_args+=(-DCWBVH_DEFER_HITS=OFF)
 cc=$(nvidia-smi --query-gpu=compute_cap --format=csv,noheader 2>/dev/null | head -1 | tr -d . || true)
 # The OptiX peer: on when the headers are there (its IR for this device's architecture).
 optix_inc=${OPTIX_INCLUDE_DIR:-$inputs/optix/include}

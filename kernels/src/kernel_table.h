@@ -30,6 +30,10 @@ inline constexpr int kernel_slot(TriangleTest test, HitMode mode) {
 }
 
 const KernelEntry* cwbvh_kernels();  ///< kKernelsPerStructure entries
+/// The watertight CWBVH kernels without deferred hit distances (TraceOptions::defer_hits
+/// = false): closest, any.
+inline constexpr int kWholeTestKernels = 2;
+const KernelEntry* cwbvh_whole_test_kernels();
 const KernelEntry* bvh2_kernels();   ///< kKernelsPerStructure entries
 
 }  // namespace gpu

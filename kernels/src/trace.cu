@@ -16,12 +16,15 @@ namespace {
 
 using gpu::KernelEntry;
 
-/// Index: structure * 4 + test * 2 + query.
+/// Index: structure * 4 + test * 2 + query for the two structures' kernels, then the
+/// CWBVH watertight kernels without deferred hits (kWholeTestBase + query).
+constexpr int kWholeTestBase = 2 * gpu::kKernelsPerStructure;
+constexpr int kKernelCount = kWholeTestBase + gpu::kWholeTestKernels;
 const KernelEntry& kernel_entry(int k) {
+    if (k >= kWholeTestBase) return gpu::cwbvh_whole_test_kernels()[k - kWholeTestBase];
     const KernelEntry* table = k < gpu::kKernelsPerStructure ? gpu::cwbvh_kernels() : gpu::bvh2_kernels();
     return table[k % gpu::kKernelsPerStructure];
 }
-constexpr int kKernelCount = 2 * gpu::kKernelsPerStructure;
 
 /// The function a launch runs: the counting variant only when statistics are asked for.
 gpu::KernelFn kernel_fn(int k, bool counting) { return counting ? kernel_entry(k).counting : kernel_entry(k).fn; }
@@ -59,8 +62,10 @@ void launch(int structure, const DeviceScene& scene, const Ray* d_rays, Hit* d_h
         throw std::invalid_argument("cwbvh::trace_bvh2: the scene has no BVH2 section (compile with --keep-sbvh)");
     if (n != 0 && (d_rays == nullptr || d_hits == nullptr))
         throw std::invalid_argument("cwbvh::trace: null ray or hit pointer");
-    const int k = structure * gpu::kKernelsPerStructure +
-                  gpu::kernel_slot(options.test, query == Query::kAny ? HitMode::kAny : HitMode::kClosest);
+    const int k = structure == 0 && options.test == TriangleTest::kWatertight && !options.defer_hits
+                      ? kWholeTestBase + (query == Query::kAny ? 1 : 0)
+                      : structure * gpu::kKernelsPerStructure +
+                            gpu::kernel_slot(options.test, query == Query::kAny ? HitMode::kAny : HitMode::kClosest);
     const KernelEntry& kernel = kernel_entry(k);
     const bool counting = options.stats != nullptr;
 

@@ -246,7 +246,7 @@ private:
                 if (o_.defer_hits) {
                     step = test_triangle_deferred(lane.l, lane.tlo, tris_[ti], ti, whole_test(lane.l, load()), th,
                                                   prev_state);
-                } else {  // the kernel built without the deferral (CWBVH_DEFER_HITS=OFF; sm_75)
+                } else {  // the kernel without the deferral (TraceOptions::defer_hits = false; sm_75)
                     step = test_triangle(lane.l, tris_[ti], ti, th) ? TriangleStep::kExact : TriangleStep::kWholeMiss;
                     lane.tlo = lane.l.tmax;
                 }

@@ -41,21 +41,27 @@ struct KernelRun {
     gpu::WorkArea work{};
 };
 
-template <TriangleTest kTest, HitMode kMode, bool kCount>
+template <TriangleTest kTest, HitMode kMode, bool kCount, bool kDefer>
 void launch(const gpu::LaunchParams& p, unsigned threads) {
     cwbvh_emulation::run_block(threads, [&] {
         // The kernel's shared stack (kernels_cwbvh.cu): [warp][entry][lane].
         static PackedEntry s_stack[gpu::kCwbvhWarpsPerBlock][kGpuSharedStackEntries][gpu::kWarpSize];
-        gpu::trace_cwbvh_persistent<kTest, kMode, kCount>(p, &s_stack[threadIdx.x / gpu::kWarpSize][0][0]);
+        gpu::trace_cwbvh_persistent<kTest, kMode, kCount, kDefer>(p, &s_stack[threadIdx.x / gpu::kWarpSize][0][0]);
     });
 }
 
+/// defer: the kernel's deferred hit distances (kernels_cwbvh.cu's production kernels), or
+/// the kernel without them (TraceOptions::defer_hits = false).
 template <TriangleTest kTest, HitMode kMode>
-void launch(const gpu::LaunchParams& p, unsigned threads, bool count) {
-    if (count)
-        launch<kTest, kMode, true>(p, threads);
+void launch(const gpu::LaunchParams& p, unsigned threads, bool count, bool defer) {
+    if (count && defer)
+        launch<kTest, kMode, true, true>(p, threads);
+    else if (count)
+        launch<kTest, kMode, true, false>(p, threads);
+    else if (defer)
+        launch<kTest, kMode, false, true>(p, threads);
     else
-        launch<kTest, kMode, false>(p, threads);
+        launch<kTest, kMode, false, false>(p, threads);
 }
 
 /// A launch's rays, triangles and outputs (r's arrays filled with values no kernel
@@ -77,7 +83,7 @@ gpu::LaunchParams launch_params(const Fixture& f, KernelRun& r) {
 /// One launch of the kernel body over `nodes` (one block of `warps` warps: the kernel's
 /// persistent loop takes every ray), with the scene constants the device upload computes.
 KernelRun run_kernel(const std::vector<CwbvhNode>& nodes, const Fixture& f, TriangleTest test, HitMode mode,
-                     bool count, unsigned warps = 1) {
+                     bool count, unsigned warps = 1, bool defer = true) {
     KernelRun r;
     gpu::LaunchParams p = launch_params(f, r);
     p.nodes = nodes.data();
@@ -86,25 +92,26 @@ KernelRun run_kernel(const std::vector<CwbvhNode>& nodes, const Fixture& f, Tria
     const unsigned threads = warps * unsigned(gpu::kWarpSize);
     if (test == TriangleTest::kWatertight) {
         if (mode == HitMode::kClosest)
-            launch<TriangleTest::kWatertight, HitMode::kClosest>(p, threads, count);
+            launch<TriangleTest::kWatertight, HitMode::kClosest>(p, threads, count, defer);
         else
-            launch<TriangleTest::kWatertight, HitMode::kAny>(p, threads, count);
+            launch<TriangleTest::kWatertight, HitMode::kAny>(p, threads, count, defer);
     } else {
         if (mode == HitMode::kClosest)
-            launch<TriangleTest::kFast, HitMode::kClosest>(p, threads, count);
+            launch<TriangleTest::kFast, HitMode::kClosest>(p, threads, count, defer);
         else
-            launch<TriangleTest::kFast, HitMode::kAny>(p, threads, count);
+            launch<TriangleTest::kFast, HitMode::kAny>(p, threads, count, defer);
     }
     return r;
 }
 
 /// The warp model with one warp: the emulated one-warp kernel's schedule.
 WarpModelStats run_model(const std::vector<CwbvhNode>& nodes, const Fixture& f, TriangleTest test, HitMode mode,
-                         std::vector<Hit>& hits) {
+                         std::vector<Hit>& hits, bool defer = true) {
     WarpModelOptions o;
     o.mode = mode;
     o.test = test;
     o.warps = 1;
+    o.defer_hits = defer;
     hits.assign(f.rays.size(), Hit{-1.0f, -1.0f, -1.0f, 12345u});
     return model_cwbvh_warps(nodes.data(), nodes.size(), f.scene.triangles.data(), f.scene.triangles.size(),
                              f.rays.data(), hits.data(), f.rays.size(), o);
@@ -226,6 +233,40 @@ TEST(KernelEmulation, DeferredHitsOnACoplanarStackAsTheWarpModel) {
         EXPECT_GT(s.lane_finalized, 0u);
         if (mode == HitMode::kClosest) {
             EXPECT_GT(s.lane_prev_finished, 0u) << "a deferred hit finished inside a round";
+        }
+    }
+}
+
+/// The kernel without deferred hit distances (TraceOptions::defer_hits = false, the kernel
+/// cwbvh_gpu_check times beside the production one; every kernel before sm_80) against the
+/// model without them, on the fixture and on the coplanar stack: the same hits, bit for bit,
+/// as the deferring kernel, and the same schedule as the model (node and triangle counts).
+TEST(KernelEmulation, KernelWithoutDeferredHitsAsTheWarpModelWithout) {
+    for (const bool coplanar : {false, true}) {
+        const Fixture f = coplanar ? coplanar_fixture() : fixture();
+        for (HitMode mode : {HitMode::kClosest, HitMode::kAny}) {
+            SCOPED_TRACE(testing::Message() << "coplanar " << coplanar << " mode " << int(mode));
+            std::vector<Hit> model_hits;
+            const WarpModelStats s = run_model(f.scene.nodes, f, TriangleTest::kWatertight, mode, model_hits, false);
+            EXPECT_EQ(s.lane_deferred_hits, 0u);
+            for (bool count : {false, true}) {
+                SCOPED_TRACE(testing::Message() << "count " << count);
+                const KernelRun k = run_kernel(f.scene.nodes, f, TriangleTest::kWatertight, mode, count, 1, false);
+                expect_bitwise_equal(k.hits, model_hits);
+                EXPECT_EQ(count_status(k.status, TraceStatus::kOk) + count_status(k.status, TraceStatus::kInvalidRay),
+                          f.rays.size());
+                if (count) {
+                    EXPECT_EQ(k.work.nodes, s.lane_node_steps);
+                    EXPECT_EQ(k.work.triangles, s.lane_tri_tests);
+                }
+                // Both kernels give the reference's hits (ties at equal t aside: the coplanar stack's
+                // duplicates, which the two kernels' different culling and so postponing may
+                // test in another order); away from ties the deferral changes no closest hit.
+                const KernelRun d = run_kernel(f.scene.nodes, f, TriangleTest::kWatertight, mode, count);
+                expect_same_hits(k.hits, reference(f, mode, TriangleTest::kWatertight), mode);
+                expect_same_hits(d.hits, reference(f, mode, TriangleTest::kWatertight), mode);
+                if (mode == HitMode::kClosest && !coplanar) expect_bitwise_equal(k.hits, d.hits);
+            }
         }
     }
 }

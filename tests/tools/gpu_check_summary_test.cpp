@@ -20,14 +20,14 @@ constexpr size_t kBig = 4000000;  // rays of a set in the means
 
 /// One closest-hit row; a time <= 0: that kernel did not run.
 Row row(const std::string& scene, const std::string& view, int bounce, size_t rays, double cw_ms, double b2_ms = -1,
-        double ox_ms = -1) {
+        double ox_ms = -1, double nd_ms = -1) {
     Row r;
     r.scene = scene;
     r.view = view;
     r.query = "closest";
     r.bounce = bounce;
     r.rays = rays;
-    const double ms[kKernels] = {cw_ms, b2_ms, ox_ms};
+    const double ms[kKernels] = {cw_ms, b2_ms, ox_ms, nd_ms};
     for (int k = 0; k < kKernels; ++k) {
         r.k[k].ran = ms[k] > 0;
         r.k[k].ms = ms[k] > 0 ? ms[k] : 0;
@@ -44,7 +44,7 @@ TEST(GpuCheckSummary, ScenesWeighEquallyWhateverTheirViews) {
     // the cube root of M(1) M(4) M(8) instead.
     const std::vector<Row> rows = {row("alpha", "a", 0, kBig, 1.0, 2.0), row("alpha", "b", 0, kBig, 4.0, 4.0),
                                    row("beta", "a", 0, kBig, 8.0, 32.0)};
-    const SetMeans<4> m = kernel_means(rows, 0);
+    const SetMeans<kKernelFigures> m = kernel_means(rows, 0);
     EXPECT_EQ(m.mean[kCwbvhMrays].scenes, 2u);
     EXPECT_NEAR(m.mean[kCwbvhMrays].value, std::sqrt(mrays(kBig, 2.0) * mrays(kBig, 8.0)), 1e-9);
     // CWBVH/BVH2 = BVH2 time over CWBVH time: alpha sqrt(2 * 1) , beta 4.
@@ -57,13 +57,13 @@ TEST(GpuCheckSummary, ScenesWeighEquallyWhateverTheirViews) {
 TEST(GpuCheckSummary, SmallRaySetsAreCountedAndLeftOut) {
     const std::vector<Row> rows = {row("alpha", "a", 1, kBig, 2.0, 4.0), row("alpha", "b", 1, kMinRaysForMeans - 1, 1.0, 9.0),
                                    row("beta", "a", 1, 999, 1.0, 9.0)};
-    const SetMeans<4> m = kernel_means(rows, 1);
+    const SetMeans<kKernelFigures> m = kernel_means(rows, 1);
     EXPECT_EQ(m.left_out, 2u);
     EXPECT_EQ(m.mean[kCwbvhMrays].scenes, 1u);  // beta's only view is left out
     EXPECT_NEAR(m.mean[kCwbvhMrays].value, mrays(kBig, 2.0), 1e-9);
     EXPECT_NEAR(m.mean[kOverBvh2].value, 2.0, 1e-12);
     // A set of exactly the threshold is in.
-    const SetMeans<4> edge = kernel_means({row("alpha", "a", 1, kMinRaysForMeans, 1.0)}, 1);
+    const SetMeans<kKernelFigures> edge = kernel_means({row("alpha", "a", 1, kMinRaysForMeans, 1.0)}, 1);
     EXPECT_EQ(edge.left_out, 0u);
     EXPECT_EQ(edge.mean[kCwbvhMrays].scenes, 1u);
 }
@@ -76,7 +76,7 @@ TEST(GpuCheckSummary, DiffuseTogetherSumsRaysAndTimesPerView) {
     for (int b = 1; b <= kBounces; ++b) rows.push_back(row("alpha", "a", b, 300000, cw[b - 1], b2[b - 1]));
     // A second view without bounce 3: skipped for diffuse 1-4, and not counted as left out.
     for (int b : {1, 2, 4}) rows.push_back(row("alpha", "b", b, kBig, 1.0, 1.0));
-    const SetMeans<4> all = kernel_means(rows, kDiffuseAll);
+    const SetMeans<kKernelFigures> all = kernel_means(rows, kDiffuseAll);
     EXPECT_EQ(all.left_out, 0u);
     ASSERT_EQ(all.mean[kCwbvhMrays].scenes, 1u);
     EXPECT_NEAR(all.mean[kCwbvhMrays].value, mrays(1200000, 10.0), 1e-9);
@@ -95,22 +95,37 @@ TEST(GpuCheckSummary, APeerThatDidNotRunIsAbsentFromItsFiguresOnly) {
         rows.push_back(row("beta", "a", b, kBig, 1.0, b == 2 ? -1 : 3.0));
         rows.push_back(row("gamma", "a", b, kBig, -1, 3.0, 2.0));
     }
-    const SetMeans<4> p = kernel_means(rows, 0);
+    const SetMeans<kKernelFigures> p = kernel_means(rows, 0);
     EXPECT_EQ(p.mean[kCwbvhMrays].scenes, 2u);
     EXPECT_EQ(p.mean[kOverBvh2].scenes, 2u);
     EXPECT_EQ(p.mean[kOptixMrays].scenes, 1u);
     EXPECT_NEAR(p.mean[kOverOptix].value, 2.0, 1e-12);
     EXPECT_NEAR(p.mean[kOptixMrays].value, mrays(kBig, 2.0), 1e-9);
-    const SetMeans<4> d = kernel_means(rows, kDiffuseAll);
+    const SetMeans<kKernelFigures> d = kernel_means(rows, kDiffuseAll);
     EXPECT_EQ(d.mean[kCwbvhMrays].scenes, 2u);
     EXPECT_EQ(d.mean[kOverBvh2].scenes, 1u);  // beta's BVH2 missed bounce 2
     EXPECT_NEAR(d.mean[kOverBvh2].value, 3.0, 1e-12);
 }
 
+TEST(GpuCheckSummary, TheDeferralsGainIsTheKernelWithoutItsTimeOverTheKernels) {
+    // alpha: without deferral 1.5x and 1.0x the production kernel's time on its two views
+    // (scene mean sqrt(1.5)); beta: 0.8x (the deferral slower); gamma: not run: absent.
+    const std::vector<Row> rows = {row("alpha", "a", 1, kBig, 2.0, 4.0, -1, 3.0),
+                                   row("alpha", "b", 1, kBig, 2.0, 4.0, -1, 2.0),
+                                   row("beta", "a", 1, kBig, 5.0, 4.0, -1, 4.0), row("gamma", "a", 1, kBig, 1.0, 4.0)};
+    const SetMeans<kKernelFigures> m = kernel_means(rows, 1);
+    EXPECT_EQ(m.mean[kOverNoDefer].scenes, 2u);
+    EXPECT_NEAR(m.mean[kOverNoDefer].value, std::sqrt(std::sqrt(1.5) * 0.8), 1e-12);
+    EXPECT_EQ(m.mean[kCwbvhMrays].scenes, 3u);  // the other figures do not need it
+    EXPECT_EQ(m.mean[kOverOptix].scenes, 0u);
+    Row r = rows[0];
+    EXPECT_NEAR(r.ratio(kNd), 1.5, 1e-12);  // the per-row ratio: > 1 where deferring is faster
+}
+
 TEST(GpuCheckSummary, AnyHitRowsAreNotInTheMeans) {
     Row any = row("alpha", "a", 0, kBig, 100.0, 1.0);
     any.query = "any";
-    const SetMeans<4> m = kernel_means({row("alpha", "a", 0, kBig, 1.0, 2.0), any}, 0);
+    const SetMeans<kKernelFigures> m = kernel_means({row("alpha", "a", 0, kBig, 1.0, 2.0), any}, 0);
     EXPECT_NEAR(m.mean[kOverBvh2].value, 2.0, 1e-12);
     EXPECT_EQ(kernel_means({any}, 0).mean[kCwbvhMrays].scenes, 0u);
 }

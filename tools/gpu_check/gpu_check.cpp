@@ -173,7 +173,8 @@ struct DevBuf {
     DevBuf& operator=(const DevBuf&) = delete;
 };
 
-enum class Kernel { kCwbvh, kBvh2, kTwoLevel };
+/// kCwbvhNoDefer: the CWBVH kernel with TraceOptions::defer_hits = false.
+enum class Kernel { kCwbvh, kBvh2, kTwoLevel, kCwbvhNoDefer };
 
 /// Runs one kernel on `n` device rays: one untimed warm-up, `repeat` timed runs
 /// (kernel launches alone), the hits of the last timed run into `hits` (and, for the
@@ -187,6 +188,7 @@ double run_kernel(const DeviceScene& ds, Kernel kernel, const Ray* d_rays, Hit* 
         TraceOptions o;
         o.kernel_ms = ms;
         o.stats = st;
+        o.defer_hits = kernel != Kernel::kCwbvhNoDefer;
         if (kernel == Kernel::kBvh2) trace_bvh2(ds, d_rays, d_hits, n, q, nullptr, o);
         else if (kernel == Kernel::kTwoLevel) trace_two_level(ds, d_rays, d_hits, d_inst, n, q, nullptr, o);
         else trace(ds, d_rays, d_hits, n, q, nullptr, o);
@@ -272,27 +274,32 @@ int usage() {
 }
 
 void print_table(const std::vector<Row>& rows) {
-    std::printf("\n%-21s %-10s %-9s %-7s %10s %7s | %8s %8s %8s %7s %7s | %6s %6s %6s %6s | %6s %6s %6s %5s %5s\n",
+    std::printf("\n%-21s %-10s %-9s %-7s %10s %7s | %8s %8s %8s %7s %7s %7s | %6s %6s %6s %6s | %6s %6s %6s %6s %5s "
+                "%5s\n",
                 "scene", "view", "rays", "query", "count", "hit%", "CW Mr/s", "B2 Mr/s", "OX Mr/s", "CW/B2", "CW/OX",
-                "CW n/r", "CW t/r", "B2 n/r", "B2 t/r", "CW mis", "B2 mis", "OX mis", "ties", "ovfl");
+                "CW/ND", "CW n/r", "CW t/r", "B2 n/r", "B2 t/r", "CW mis", "B2 mis", "ND mis", "OX mis", "ties",
+                "ovfl");
     bool small = false;
     for (const Row& r : rows) {
-        const KernelResult &c = r.k[kCw], &b = r.k[kB2], &o = r.k[kOx];
+        const KernelResult &c = r.k[kCw], &b = r.k[kB2], &o = r.k[kOx], &d = r.k[kNd];
         small = small || !r.in_means();
-        std::printf("%-21s %-10s %-9s %-7s %9zu%c %6.1f%% | %8.1f %8s %8s %7s %7s | %6.1f %6.1f %6s %6s | %6llu %6s "
-                    "%6s %5llu %5llu\n",
+        std::printf("%-21s %-10s %-9s %-7s %9zu%c %6.1f%% | %8.1f %8s %8s %7s %7s %7s | %6.1f %6.1f %6s %6s | %6llu "
+                    "%6s %6s %6s %5llu %5llu\n",
                     r.scene.c_str(), r.view.c_str(), r.rays_kind.c_str(), r.query.c_str(), r.rays,
                     r.in_means() ? ' ' : '*', r.rays ? 100.0 * double(r.cpu_hits) / double(r.rays) : 0.0, c.mrays,
                     fmt(b.ran, "%.1f", b.mrays).c_str(), fmt(o.ran, "%.1f", o.mrays).c_str(),
                     fmt(r.ratio(kB2) > 0, "%.2fx", r.ratio(kB2)).c_str(),
-                    fmt(r.ratio(kOx) > 0, "%.2fx", r.ratio(kOx)).c_str(), c.nodes_per_ray, c.tris_per_ray,
+                    fmt(r.ratio(kOx) > 0, "%.2fx", r.ratio(kOx)).c_str(),
+                    fmt(r.ratio(kNd) > 0, "%.2fx", r.ratio(kNd)).c_str(), c.nodes_per_ray, c.tris_per_ray,
                     fmt(b.ran, "%.1f", b.nodes_per_ray).c_str(), fmt(b.ran, "%.1f", b.tris_per_ray).c_str(),
                     (unsigned long long)c.mismatches, fmt(b.ran, "%.0f", double(b.mismatches)).c_str(),
-                    fmt(o.ran, "%.0f", double(o.mismatches)).c_str(), (unsigned long long)(c.ties + b.ties),
-                    (unsigned long long)(c.overflows + b.overflows));
+                    fmt(d.ran, "%.0f", double(d.mismatches)).c_str(), fmt(o.ran, "%.0f", double(o.mismatches)).c_str(),
+                    (unsigned long long)(c.ties + b.ties + d.ties), (unsigned long long)(c.overflows + b.overflows + d.overflows));
     }
     if (small)
         std::printf("* fewer than %zu rays: printed, not in the geometric means\n", kMinRaysForMeans);
+    std::printf("CW/ND: the CWBVH kernel over itself without deferred hit distances (ND, TraceOptions::defer_hits = "
+                "false; CW mis and ND mis: hits not the CPU reference's, a failure)\n");
     std::printf("OX mis: OptiX hits that disagree with the CPU reference beyond equal-t ties (t within %u ulps, "
                 "hit vs miss); counted, not a failure\n", kOptixUlpBound);
 }
@@ -399,11 +406,12 @@ bool write_csv(const std::string& path, const std::vector<Row>& rows, const std:
          "cwbvh_over_bvh2,cwbvh_nodes_per_ray,cwbvh_tris_per_ray,bvh2_nodes_per_ray,bvh2_tris_per_ray,"
          "cwbvh_mismatches,bvh2_mismatches,cwbvh_ties,bvh2_ties,cwbvh_overflows,bvh2_overflows,"
          "optix_ms,optix_mrays,cwbvh_over_optix,optix_mismatches,optix_hit_vs_miss,optix_ties,in_means,"
-         "inline_ms,inline_mrays,inline_over_cwbvh,inline_mismatches,inline_not_ok\n";
+         "inline_ms,inline_mrays,inline_over_cwbvh,inline_mismatches,inline_not_ok,nodefer_ms,nodefer_mrays,"
+         "cwbvh_over_nodefer,nodefer_mismatches\n";
     const auto& num = csv_num;
     auto cnt = [](bool ran, uint64_t v) { return ran ? std::to_string(v) : std::string(); };
     for (const Row& r : rows) {
-        const KernelResult &c = r.k[kCw], &b = r.k[kB2], &o = r.k[kOx];
+        const KernelResult &c = r.k[kCw], &b = r.k[kB2], &o = r.k[kOx], &d = r.k[kNd];
         f << r.scene << ',' << r.view << ',' << r.rays_kind << ',' << r.query << ',' << width << ',' << height << ','
           << r.rays << ',' << r.cpu_hits << ",\"" << device << "\"," << repeat << ',' << num(c.ran, c.ms) << ','
           << num(c.ran, c.mrays) << ',' << num(b.ran, b.ms) << ',' << num(b.ran, b.mrays) << ','
@@ -415,7 +423,9 @@ bool write_csv(const std::string& path, const std::vector<Row>& rows, const std:
           << cnt(o.ran, o.mismatches) << ',' << cnt(o.ran, o.hit_vs_miss) << ',' << cnt(o.ran, o.ties) << ','
           << (r.in_means() ? 1 : 0) << ',' << num(r.inl.ran, r.inl.ms) << ',' << num(r.inl.ran, r.inl.mrays)
           << ',' << num(r.inl.ran && c.ran && c.mrays > 0, c.mrays > 0 ? r.inl.mrays / c.mrays : 0.0) << ','
-          << cnt(r.inl.ran, r.inl.mismatches) << ',' << cnt(r.inl.ran, r.inl.overflows) << '\n';
+          << cnt(r.inl.ran, r.inl.mismatches) << ',' << cnt(r.inl.ran, r.inl.overflows) << ',' << num(d.ran, d.ms)
+          << ',' << num(d.ran, d.mrays) << ',' << num(r.ratio(kNd) > 0, r.ratio(kNd)) << ','
+          << cnt(d.ran, d.mismatches) << '\n';
     }
     return bool(f);
 }
@@ -650,10 +660,10 @@ int main(int argc, char** argv) {
             device_name = prop.name;
             std::printf("device: %s (sm_%d%d, %d SMs)\n", prop.name, prop.major, prop.minor,
                         prop.multiProcessorCount);
-            KernelInfo info[8];
-            const int nk = kernel_info(info, 8);
+            KernelInfo info[16];
+            const int nk = kernel_info(info, 16);
             for (int k = 0; k < nk; ++k)
-                std::printf("kernel %-26s regs %3d  local %5zu B  shared %6zu B  ptx %d  sass %d\n", info[k].name,
+                std::printf("kernel %-32s regs %3d  local %5zu B  shared %6zu B  ptx %d  sass %d\n", info[k].name,
                             info[k].registers, info[k].local_bytes, info[k].shared_bytes, info[k].ptx_version,
                             info[k].binary_version);
             // The fast node test's half arithmetic, the per-ray set-up and the reference
@@ -927,13 +937,16 @@ int main(int argc, char** argv) {
                             }
 #endif
                             std::vector<Hit> cw_hits;  // the flattened file's CWBVH kernel (two-level comparison)
-                            for (int k = 0; k < 2; ++k) {
-                                const bool bvh2 = k == 1;
+                            // The CWBVH kernel, BVH2, and the CWBVH kernel without deferred hits.
+                            for (const int k : {kCw, kB2, kNd}) {
+                                const bool bvh2 = k == kB2;
                                 if (bvh2 && !ds->has_bvh2()) continue;
+                                const char* kname = bvh2 ? "bvh2" : k == kNd ? "cwbvh_nodefer" : "cwbvh";
                                 std::vector<Hit> hits;
                                 DeviceTraceStats st;
-                                const double ms = run_kernel(*ds, bvh2 ? Kernel::kBvh2 : Kernel::kCwbvh, d_rays.p,
-                                                             d_hits.p, rays.size(), any != 0, repeat, hits, st);
+                                const Kernel which = bvh2 ? Kernel::kBvh2 : k == kNd ? Kernel::kCwbvhNoDefer : Kernel::kCwbvh;
+                                const double ms = run_kernel(*ds, which, d_rays.p, d_hits.p, rays.size(), any != 0,
+                                                             repeat, hits, st);
                                 const std::vector<Hit>& cpu = any ? ref_any : ref;
                                 const HitCompare c = compare_hits(hits, cpu, any != 0, kKernelUlpBound);
                                 KernelResult& kr = r.k[k];
@@ -950,19 +963,19 @@ int main(int argc, char** argv) {
                                     failed = true;
                                     if (st.bad_indices)
                                         std::printf("  BAD INDICES %s %s %s %s %s: %llu\n", s.name.c_str(),
-                                                    view.name.c_str(), r.rays_kind.c_str(), r.query.c_str(),
-                                                    bvh2 ? "bvh2" : "cwbvh", (unsigned long long)st.bad_indices);
+                                                    view.name.c_str(), r.rays_kind.c_str(), r.query.c_str(), kname,
+                                                    (unsigned long long)st.bad_indices);
                                     if (c.first_bad >= 0) {
                                         const size_t i = size_t(c.first_bad);
                                         std::printf("  MISMATCH %s %s %s %s %s ray %zu: gpu prim %u t %.9g, cpu prim "
                                                     "%u t %.9g (%llu mismatches)\n",
                                                     s.name.c_str(), view.name.c_str(), r.rays_kind.c_str(),
-                                                    r.query.c_str(), bvh2 ? "bvh2" : "cwbvh", i, hits[i].prim,
+                                                    r.query.c_str(), kname, i, hits[i].prim,
                                                     double(hits[i].t), cpu[i].prim, double(cpu[i].t),
                                                     (unsigned long long)c.mismatches);
                                     }
                                 }
-                                if (!bvh2) cw_hits = std::move(hits);
+                                if (k == kCw) cw_hits = std::move(hits);
                             }
                             if (!ds->has_two_level()) {  // the inline query, one thread per ray
                                 std::vector<Hit> hits;

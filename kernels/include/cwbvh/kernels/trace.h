@@ -54,6 +54,14 @@ struct TraceOptions {
     /// synchronises `stream` and writes the elapsed milliseconds. Benchmarks use this:
     /// events around the whole call pull every ratio toward 1 on short launches.
     float* kernel_ms = nullptr;
+    /// trace() with the watertight test, closest and any hit: on sm_80 and newer, a hit that
+    /// float arithmetic proves the closest so far is taken on rigorous bounds of its distance,
+    /// and its double-precision t, u, v are computed when the ray ends (deferred hit
+    /// distances). false: the kernel that computes them at every such triangle. The same
+    /// hits bit for bit either way; false is there to measure the difference (cwbvh_gpu_check
+    /// times both). No effect on the fast test, trace_bvh2, trace_two_level or GPUs before
+    /// sm_80 (which never defer).
+    bool defer_hits = true;
 };
 
 /// CWBVH kernel. d_rays, d_hits: n records each, on scene.device(). A two-level

@@ -51,12 +51,9 @@ inline constexpr int kCwbvhMinBlocksPerSm = CWBVH_CWBVH_MIN_BLOCKS;
 
 /// Deferred hit distances (issue 18; cwbvh_lane.h, test_triangle_deferred): the
 /// watertight kernels take a hit float proves the closest so far without the double-
-/// precision distance and finish it when the warp refills. 0: the whole test at every
-/// triangle past the float stages, as before (CMake -DCWBVH_DEFER_HITS=OFF,
-/// scripts/gpu-check.sh: DEFER_HITS=0), for an A/B run on a GPU.
-#ifndef CWBVH_DEFER_HITS
-#define CWBVH_DEFER_HITS 1
-#endif
+/// precision distance and finish it when the warp refills. The kernel body's kDeferAsked
+/// = false runs the whole test at every triangle past the float stages, as before the
+/// deferral (TraceOptions::defer_hits = false; cwbvh_gpu_check times both in one run).
 /// Not before sm_80: the deferral's shared memory (the lane's tlo, ray id and nine per-ray
 /// constants, 5.6 KiB a block; 19 KiB in all, 20 KiB in the statistics variants) would leave a
 /// Turing SM (64 KiB) 3 resident blocks instead of 4. sm_80 and sm_90 (164 and 228 KiB) keep 6;
@@ -65,7 +62,7 @@ inline constexpr int kCwbvhMinBlocksPerSm = CWBVH_CWBVH_MIN_BLOCKS;
 #if defined(__CUDA_ARCH__) && __CUDA_ARCH__ < 800
 inline constexpr bool kDeferHits = false;
 #else
-inline constexpr bool kDeferHits = CWBVH_DEFER_HITS != 0;
+inline constexpr bool kDeferHits = true;
 #endif
 
 // ---------------------------------------------------------------------------
@@ -112,16 +109,19 @@ __device__ __forceinline__ void count_rare(unsigned long long* total) { atomicAd
 ///            lanes without node work pop the next group (pop_if_idle: into the node
 ///            or the triangle group); then update_lost_work, and the warp goes back
 ///            to refill when the lost work reaches kDynamicFetchNw (rays remaining).
-template <TriangleTest kTest, HitMode kMode, bool kCount>
+/// kDeferAsked: deferred hit distances where the test and the architecture have them
+/// (kDeferHits above); false: the kernel without them, the same hits (A/B runs).
+template <TriangleTest kTest, HitMode kMode, bool kCount, bool kDeferAsked = true>
 __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, PackedEntry* warp_stack_base) {
     const unsigned lane = threadIdx.x & (kWarpSize - 1);
-    constexpr bool kDefer = kDeferHits && kTest == TriangleTest::kWatertight;  // the fast test defers nothing
+    // The fast test defers nothing (its hit distance is float already).
+    constexpr bool kDefer = kDeferAsked && kDeferHits && kTest == TriangleTest::kWatertight;
     static_assert(GpuStack::kStride == kWarpSize, "the shared stack layout is [warp][entry][lane]");
     PackedEntry spill[kGpuLocalStackEntries];  // local memory, apart from the stack object (gpu_stack.h)
     GpuStack stack(warp_stack_base + lane, spill);
 
     // The ray id is read only when the hit is written: in shared memory where the deferral
-    // needs the register (kDeferHits), else in a register.
+    // needs the register (kDefer), else in a register.
     __shared__ uint32_t s_ray_id[kCwbvhBlockThreads];
     uint32_t ray_id_reg = 0;
     CwbvhLane<kTest> l(Ray{{0.0f, 0.0f, 0.0f}, 0.0f, {1.0f, 1.0f, 1.0f}, 0.0f});

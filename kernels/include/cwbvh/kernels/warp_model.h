@@ -70,7 +70,8 @@ struct WarpModelOptions {
     bool dynamic_fetch = true;                ///< refill by lost work (else: when all lanes are done)
     /// Watertight CWBVH: defer the double-precision hit distance (cwbvh_lane.h,
     /// test_triangle_deferred), as the kernel does; false: the whole test at every triangle
-    /// that passes the float stages, as the kernel did until issue 18's deferral.
+    /// that passes the float stages, as the kernel does with TraceOptions::defer_hits = false
+    /// and before sm_80.
     bool defer_hits = true;
     int fetch_nd = kDynamicFetchNd;
     int fetch_nw = kDynamicFetchNw;
