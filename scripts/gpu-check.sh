@@ -35,7 +35,7 @@
 # enclosed ones; scene key = the .cwbvh file's stem), 2048x2048, primary + diffuse bounces 1-4.
 # Ray sets of fewer than 1M rays are printed but kept out of the geometric means.
 # Time on the 16-core GPU machine, all nine scenes: about 6 minutes expected (build, compile,
-# CPU reference, --repeat 3 on the four kernels, sanitizer; estimated from the CPU side
+# CPU reference, --repeat 3 on the five kernels (CWBVH, its two A/Bs, BVH2, OptiX), sanitizer; estimated from the CPU side
 # here, bench/README.md, "GPU: the three-way benchmark"): every scene keeps 2048x2048.
 #
 # usage: scripts/gpu-check.sh [extra cwbvh_gpu_check args, e.g. --width 1024 --height 1024 --repeat 9]

@@ -87,7 +87,8 @@ void launch(int structure, const DeviceScene& scene, const Ray* d_rays, Hit* d_h
                          p.status = options.d_status ? options.d_status + first : nullptr;
                          p.ray_count = count;
                          p.work = work;
-                         p.node_scale = scene.node_scale();
+                         // NodeScale{} (usable 0): no ray takes the fast node test.
+                         p.node_scale = options.fast_node_test ? scene.node_scale() : NodeScale{};
                          const uint32_t blocks =
                              gpu::launch_blocks(persistent_blocks(device, k, counting), options, count,
                                                 uint32_t(kernel.block_threads));

@@ -205,10 +205,14 @@ TEST(GpuTrace, MatchesCpuOnSyntheticScene) {
         co.mode = any ? HitMode::kAny : HitMode::kClosest;
         trace_cwbvh_cpu(sd.nodes.data(), sd.nodes.size(), sd.triangles.data(), sd.triangles.size(), rays.data(),
                         ref.data(), n, co);
-        for (int bvh2 = 0; bvh2 < 2; ++bvh2) {
+        // 0 BVH2; 1 CWBVH; 2, 3 its A/B variants (no deferred hits; the reference node test).
+        for (int variant = 0; variant < 4; ++variant) {
+            const bool bvh2 = variant == 0;
             DeviceTraceStats st;
             TraceOptions to;
             to.stats = &st;
+            to.defer_hits = variant != 2;
+            to.fast_node_test = variant != 3;
             const Query q = any ? Query::kAny : Query::kClosest;
             if (bvh2) trace_bvh2(*ds, d_rays, d_hits, n, q, nullptr, to);
             else trace(*ds, d_rays, d_hits, n, q, nullptr, to);
@@ -221,7 +225,7 @@ TEST(GpuTrace, MatchesCpuOnSyntheticScene) {
                 const bool gh = got[i].prim != kMissPrim, ch = ref[i].prim != kMissPrim;
                 if (gh != ch || (!any && gh && got[i].t != ref[i].t)) ++bad;
             }
-            EXPECT_EQ(bad, 0u) << (bvh2 ? "bvh2" : "cwbvh") << (any ? " any" : " closest");
+            EXPECT_EQ(bad, 0u) << (bvh2 ? "bvh2" : "cwbvh") << " variant " << variant << (any ? " any" : " closest");
         }
     }
     cudaFree(d_rays);

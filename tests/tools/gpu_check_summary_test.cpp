@@ -20,14 +20,14 @@ constexpr size_t kBig = 4000000;  // rays of a set in the means
 
 /// One closest-hit row; a time <= 0: that kernel did not run.
 Row row(const std::string& scene, const std::string& view, int bounce, size_t rays, double cw_ms, double b2_ms = -1,
-        double ox_ms = -1, double nd_ms = -1) {
+        double ox_ms = -1, double nd_ms = -1, double rn_ms = -1) {
     Row r;
     r.scene = scene;
     r.view = view;
     r.query = "closest";
     r.bounce = bounce;
     r.rays = rays;
-    const double ms[kKernels] = {cw_ms, b2_ms, ox_ms, nd_ms};
+    const double ms[kKernels] = {cw_ms, b2_ms, ox_ms, nd_ms, rn_ms};
     for (int k = 0; k < kKernels; ++k) {
         r.k[k].ran = ms[k] > 0;
         r.k[k].ms = ms[k] > 0 ? ms[k] : 0;
@@ -107,19 +107,23 @@ TEST(GpuCheckSummary, APeerThatDidNotRunIsAbsentFromItsFiguresOnly) {
     EXPECT_NEAR(d.mean[kOverBvh2].value, 3.0, 1e-12);
 }
 
-TEST(GpuCheckSummary, TheDeferralsGainIsTheKernelWithoutItsTimeOverTheKernels) {
-    // alpha: without deferral 1.5x and 1.0x the production kernel's time on its two views
-    // (scene mean sqrt(1.5)); beta: 0.8x (the deferral slower); gamma: not run: absent.
-    const std::vector<Row> rows = {row("alpha", "a", 1, kBig, 2.0, 4.0, -1, 3.0),
+TEST(GpuCheckSummary, TheAbsGainsAreTheKernelWithoutThePartsTimeOverTheKernels) {
+    // No deferral: alpha 1.5x and 1.0x the production kernel's time on its two views (scene
+    // mean sqrt(1.5)); beta 0.8x (the deferral slower); gamma not run: absent. Reference node
+    // test: alpha 2.0x on view a only (b did not run it), gamma 1.25x.
+    const std::vector<Row> rows = {row("alpha", "a", 1, kBig, 2.0, 4.0, -1, 3.0, 4.0),
                                    row("alpha", "b", 1, kBig, 2.0, 4.0, -1, 2.0),
-                                   row("beta", "a", 1, kBig, 5.0, 4.0, -1, 4.0), row("gamma", "a", 1, kBig, 1.0, 4.0)};
+                                   row("beta", "a", 1, kBig, 5.0, 4.0, -1, 4.0),
+                                   row("gamma", "a", 1, kBig, 1.0, 4.0, -1, -1, 1.25)};
     const SetMeans<kKernelFigures> m = kernel_means(rows, 1);
     EXPECT_EQ(m.mean[kOverNoDefer].scenes, 2u);
     EXPECT_NEAR(m.mean[kOverNoDefer].value, std::sqrt(std::sqrt(1.5) * 0.8), 1e-12);
-    EXPECT_EQ(m.mean[kCwbvhMrays].scenes, 3u);  // the other figures do not need it
+    EXPECT_EQ(m.mean[kOverRefNode].scenes, 2u);
+    EXPECT_NEAR(m.mean[kOverRefNode].value, std::sqrt(2.0 * 1.25), 1e-12);
+    EXPECT_EQ(m.mean[kCwbvhMrays].scenes, 3u);  // the other figures do not need them
     EXPECT_EQ(m.mean[kOverOptix].scenes, 0u);
-    Row r = rows[0];
-    EXPECT_NEAR(r.ratio(kNd), 1.5, 1e-12);  // the per-row ratio: > 1 where deferring is faster
+    EXPECT_NEAR(rows[0].ratio(kNd), 1.5, 1e-12);  // per row: > 1 where the part makes it faster
+    EXPECT_NEAR(rows[0].ratio(kRn), 2.0, 1e-12);
 }
 
 TEST(GpuCheckSummary, AnyHitRowsAreNotInTheMeans) {

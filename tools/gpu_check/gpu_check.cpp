@@ -173,8 +173,9 @@ struct DevBuf {
     DevBuf& operator=(const DevBuf&) = delete;
 };
 
-/// kCwbvhNoDefer: the CWBVH kernel with TraceOptions::defer_hits = false.
-enum class Kernel { kCwbvh, kBvh2, kTwoLevel, kCwbvhNoDefer };
+/// kCwbvhNoDefer, kCwbvhRefNode: the CWBVH kernel with TraceOptions::defer_hits = false, or
+/// with fast_node_test = false.
+enum class Kernel { kCwbvh, kBvh2, kTwoLevel, kCwbvhNoDefer, kCwbvhRefNode };
 
 /// Runs one kernel on `n` device rays: one untimed warm-up, `repeat` timed runs
 /// (kernel launches alone), the hits of the last timed run into `hits` (and, for the
@@ -189,6 +190,7 @@ double run_kernel(const DeviceScene& ds, Kernel kernel, const Ray* d_rays, Hit* 
         o.kernel_ms = ms;
         o.stats = st;
         o.defer_hits = kernel != Kernel::kCwbvhNoDefer;
+        o.fast_node_test = kernel != Kernel::kCwbvhRefNode;
         if (kernel == Kernel::kBvh2) trace_bvh2(ds, d_rays, d_hits, n, q, nullptr, o);
         else if (kernel == Kernel::kTwoLevel) trace_two_level(ds, d_rays, d_hits, d_inst, n, q, nullptr, o);
         else trace(ds, d_rays, d_hits, n, q, nullptr, o);
@@ -274,32 +276,34 @@ int usage() {
 }
 
 void print_table(const std::vector<Row>& rows) {
-    std::printf("\n%-21s %-10s %-9s %-7s %10s %7s | %8s %8s %8s %7s %7s %7s | %6s %6s %6s %6s | %6s %6s %6s %6s %5s "
-                "%5s\n",
+    std::printf("\n%-21s %-10s %-9s %-7s %10s %7s | %8s %8s %8s %7s %7s %7s %7s | %6s %6s %6s %6s %6s | %6s %6s %6s "
+                "%6s %6s %5s %5s\n",
                 "scene", "view", "rays", "query", "count", "hit%", "CW Mr/s", "B2 Mr/s", "OX Mr/s", "CW/B2", "CW/OX",
-                "CW/ND", "CW n/r", "CW t/r", "B2 n/r", "B2 t/r", "CW mis", "B2 mis", "ND mis", "OX mis", "ties",
-                "ovfl");
+                "CW/ND", "CW/RN", "CW n/r", "CW t/r", "RN n/r", "B2 n/r", "B2 t/r", "CW mis", "B2 mis", "ND mis",
+                "RN mis", "OX mis", "ties", "ovfl");
     bool small = false;
     for (const Row& r : rows) {
-        const KernelResult &c = r.k[kCw], &b = r.k[kB2], &o = r.k[kOx], &d = r.k[kNd];
+        const KernelResult &c = r.k[kCw], &b = r.k[kB2], &o = r.k[kOx], &d = r.k[kNd], &n = r.k[kRn];
         small = small || !r.in_means();
-        std::printf("%-21s %-10s %-9s %-7s %9zu%c %6.1f%% | %8.1f %8s %8s %7s %7s %7s | %6.1f %6.1f %6s %6s | %6llu "
-                    "%6s %6s %6s %5llu %5llu\n",
+        auto ratio = [&](int k) { return fmt(r.ratio(k) > 0, "%.2fx", r.ratio(k)); };
+        auto count = [](const KernelResult& x, uint64_t v) { return fmt(x.ran, "%.0f", double(v)); };
+        std::printf("%-21s %-10s %-9s %-7s %9zu%c %6.1f%% | %8.1f %8s %8s %7s %7s %7s %7s | %6.1f %6.1f %6s %6s %6s | "
+                    "%6llu %6s %6s %6s %6s %5llu %5llu\n",
                     r.scene.c_str(), r.view.c_str(), r.rays_kind.c_str(), r.query.c_str(), r.rays,
                     r.in_means() ? ' ' : '*', r.rays ? 100.0 * double(r.cpu_hits) / double(r.rays) : 0.0, c.mrays,
-                    fmt(b.ran, "%.1f", b.mrays).c_str(), fmt(o.ran, "%.1f", o.mrays).c_str(),
-                    fmt(r.ratio(kB2) > 0, "%.2fx", r.ratio(kB2)).c_str(),
-                    fmt(r.ratio(kOx) > 0, "%.2fx", r.ratio(kOx)).c_str(),
-                    fmt(r.ratio(kNd) > 0, "%.2fx", r.ratio(kNd)).c_str(), c.nodes_per_ray, c.tris_per_ray,
-                    fmt(b.ran, "%.1f", b.nodes_per_ray).c_str(), fmt(b.ran, "%.1f", b.tris_per_ray).c_str(),
-                    (unsigned long long)c.mismatches, fmt(b.ran, "%.0f", double(b.mismatches)).c_str(),
-                    fmt(d.ran, "%.0f", double(d.mismatches)).c_str(), fmt(o.ran, "%.0f", double(o.mismatches)).c_str(),
-                    (unsigned long long)(c.ties + b.ties + d.ties), (unsigned long long)(c.overflows + b.overflows + d.overflows));
+                    fmt(b.ran, "%.1f", b.mrays).c_str(), fmt(o.ran, "%.1f", o.mrays).c_str(), ratio(kB2).c_str(),
+                    ratio(kOx).c_str(), ratio(kNd).c_str(), ratio(kRn).c_str(), c.nodes_per_ray, c.tris_per_ray,
+                    fmt(n.ran, "%.1f", n.nodes_per_ray).c_str(), fmt(b.ran, "%.1f", b.nodes_per_ray).c_str(),
+                    fmt(b.ran, "%.1f", b.tris_per_ray).c_str(), (unsigned long long)c.mismatches,
+                    count(b, b.mismatches).c_str(), count(d, d.mismatches).c_str(), count(n, n.mismatches).c_str(),
+                    count(o, o.mismatches).c_str(), (unsigned long long)(c.ties + b.ties + d.ties + n.ties),
+                    (unsigned long long)(c.overflows + b.overflows + d.overflows + n.overflows));
     }
     if (small)
         std::printf("* fewer than %zu rays: printed, not in the geometric means\n", kMinRaysForMeans);
-    std::printf("CW/ND: the CWBVH kernel over itself without deferred hit distances (ND, TraceOptions::defer_hits = "
-                "false; CW mis and ND mis: hits not the CPU reference's, a failure)\n");
+    std::printf("CW/ND, CW/RN: the CWBVH kernel over itself without deferred hit distances (ND, TraceOptions::defer_hits "
+                "= false) and with the reference node test for every ray (RN, fast_node_test = false; RN n/r its node "
+                "visits a ray); CW, ND and RN mis: hits not the CPU reference's, a failure\n");
     std::printf("OX mis: OptiX hits that disagree with the CPU reference beyond equal-t ties (t within %u ulps, "
                 "hit vs miss); counted, not a failure\n", kOptixUlpBound);
 }
@@ -407,11 +411,12 @@ bool write_csv(const std::string& path, const std::vector<Row>& rows, const std:
          "cwbvh_mismatches,bvh2_mismatches,cwbvh_ties,bvh2_ties,cwbvh_overflows,bvh2_overflows,"
          "optix_ms,optix_mrays,cwbvh_over_optix,optix_mismatches,optix_hit_vs_miss,optix_ties,in_means,"
          "inline_ms,inline_mrays,inline_over_cwbvh,inline_mismatches,inline_not_ok,nodefer_ms,nodefer_mrays,"
-         "cwbvh_over_nodefer,nodefer_mismatches\n";
+         "cwbvh_over_nodefer,nodefer_mismatches,refnode_ms,refnode_mrays,cwbvh_over_refnode,refnode_nodes_per_ray,"
+         "refnode_mismatches\n";
     const auto& num = csv_num;
     auto cnt = [](bool ran, uint64_t v) { return ran ? std::to_string(v) : std::string(); };
     for (const Row& r : rows) {
-        const KernelResult &c = r.k[kCw], &b = r.k[kB2], &o = r.k[kOx], &d = r.k[kNd];
+        const KernelResult &c = r.k[kCw], &b = r.k[kB2], &o = r.k[kOx], &d = r.k[kNd], &n = r.k[kRn];
         f << r.scene << ',' << r.view << ',' << r.rays_kind << ',' << r.query << ',' << width << ',' << height << ','
           << r.rays << ',' << r.cpu_hits << ",\"" << device << "\"," << repeat << ',' << num(c.ran, c.ms) << ','
           << num(c.ran, c.mrays) << ',' << num(b.ran, b.ms) << ',' << num(b.ran, b.mrays) << ','
@@ -425,7 +430,9 @@ bool write_csv(const std::string& path, const std::vector<Row>& rows, const std:
           << ',' << num(r.inl.ran && c.ran && c.mrays > 0, c.mrays > 0 ? r.inl.mrays / c.mrays : 0.0) << ','
           << cnt(r.inl.ran, r.inl.mismatches) << ',' << cnt(r.inl.ran, r.inl.overflows) << ',' << num(d.ran, d.ms)
           << ',' << num(d.ran, d.mrays) << ',' << num(r.ratio(kNd) > 0, r.ratio(kNd)) << ','
-          << cnt(d.ran, d.mismatches) << '\n';
+          << cnt(d.ran, d.mismatches) << ',' << num(n.ran, n.ms) << ',' << num(n.ran, n.mrays) << ','
+          << num(r.ratio(kRn) > 0, r.ratio(kRn)) << ',' << num(n.ran, n.nodes_per_ray) << ','
+          << cnt(n.ran, n.mismatches) << '\n';
     }
     return bool(f);
 }
@@ -937,14 +944,21 @@ int main(int argc, char** argv) {
                             }
 #endif
                             std::vector<Hit> cw_hits;  // the flattened file's CWBVH kernel (two-level comparison)
-                            // The CWBVH kernel, BVH2, and the CWBVH kernel without deferred hits.
-                            for (const int k : {kCw, kB2, kNd}) {
+                            // The CWBVH kernel, BVH2, and the CWBVH kernel's A/Bs: without deferred
+                            // hits, with the reference node test.
+                            for (const int k : {kCw, kB2, kNd, kRn}) {
                                 const bool bvh2 = k == kB2;
                                 if (bvh2 && !ds->has_bvh2()) continue;
-                                const char* kname = bvh2 ? "bvh2" : k == kNd ? "cwbvh_nodefer" : "cwbvh";
+                                const char* kname = bvh2        ? "bvh2"
+                                                    : k == kNd  ? "cwbvh_nodefer"
+                                                    : k == kRn  ? "cwbvh_refnode"
+                                                                : "cwbvh";
                                 std::vector<Hit> hits;
                                 DeviceTraceStats st;
-                                const Kernel which = bvh2 ? Kernel::kBvh2 : k == kNd ? Kernel::kCwbvhNoDefer : Kernel::kCwbvh;
+                                const Kernel which = bvh2       ? Kernel::kBvh2
+                                                     : k == kNd ? Kernel::kCwbvhNoDefer
+                                                     : k == kRn ? Kernel::kCwbvhRefNode
+                                                                : Kernel::kCwbvh;
                                 const double ms = run_kernel(*ds, which, d_rays.p, d_hits.p, rays.size(), any != 0,
                                                              repeat, hits, st);
                                 const std::vector<Hit>& cpu = any ? ref_any : ref;

@@ -30,10 +30,11 @@ namespace cwbvh::gpu_check {
 constexpr int kBounces = 4;
 constexpr int kDiffuseAll = kBounces + 1;     ///< the ray set of diffuse bounces 1..kBounces together
 constexpr size_t kMinRaysForMeans = 1000000;  ///< smaller ray sets: printed, not in the geometric means
-constexpr int kKernels = 4;                   ///< CWBVH, BVH2, OptiX, CWBVH without deferred hits
-/// kNd: the watertight CWBVH kernel without deferred hit distances (TraceOptions::defer_hits
-/// = false), timed beside the production one on the same rays: the deferral's A/B in one run.
-constexpr int kCw = 0, kB2 = 1, kOx = 2, kNd = 3;
+constexpr int kKernels = 5;  ///< CWBVH, BVH2, OptiX, and the CWBVH kernel without two of its parts
+/// The CWBVH kernel's A/Bs in one run, timed beside the production kernel on the same rays:
+/// kNd without deferred hit distances (TraceOptions::defer_hits = false), kRn with the
+/// reference node test for every ray (TraceOptions::fast_node_test = false).
+constexpr int kCw = 0, kB2 = 1, kOx = 2, kNd = 3, kRn = 4;
 
 /// One kernel's result on one ray set and query.
 struct KernelResult {
@@ -62,7 +63,7 @@ struct Row {
     size_t rays = 0;
     uint64_t cpu_hits = 0;
     double cpu_mrays = 0;
-    KernelResult k[kKernels];  ///< [kCw] CWBVH, [kB2] BVH2, [kOx] OptiX, [kNd] CWBVH without deferral
+    KernelResult k[kKernels];  ///< [kCw] CWBVH, [kB2] BVH2, [kOx] OptiX, [kNd], [kRn] CWBVH A/Bs
     TwoLevelResult tl;         ///< the instanced file (tl.present)
     KernelResult inl;          ///< the inline query (query.h) on the same file; mismatches: bitwise vs the CPU
     /// Two-level kernel speed over the flattened file's CWBVH kernel's, 0 when either did not run.
@@ -101,11 +102,12 @@ struct SetMeans {
 };
 
 /// The kernels side by side, closest hit: CWBVH Mrays/s, CWBVH/BVH2, OptiX Mrays/s,
-/// CWBVH/OptiX, CWBVH over itself without deferred hits (speeds as the set's rays over its
-/// summed kernel times). A view counts where the CWBVH kernel ran on every bounce of the
-/// set; the other figures where their kernel ran too.
-enum KernelFigure { kCwbvhMrays, kOverBvh2, kOptixMrays, kOverOptix, kOverNoDefer };
-inline constexpr size_t kKernelFigures = 5;
+/// CWBVH/OptiX, CWBVH over itself without deferred hits and over itself with the reference
+/// node test (speeds as the set's rays over its summed kernel times). A view counts where
+/// the CWBVH kernel ran on every bounce of the set; the other figures where their kernel
+/// ran too.
+enum KernelFigure { kCwbvhMrays, kOverBvh2, kOptixMrays, kOverOptix, kOverNoDefer, kOverRefNode };
+inline constexpr size_t kKernelFigures = 6;
 SetMeans<kKernelFigures> kernel_means(const std::vector<Row>& rows, int set);
 
 /// The two-level kernel beside the flattened file's CWBVH kernel, closest hit, on views

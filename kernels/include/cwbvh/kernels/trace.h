@@ -62,6 +62,12 @@ struct TraceOptions {
     /// times both). No effect on the fast test, trace_bvh2, trace_two_level or GPUs before
     /// sm_80 (which never defer).
     bool defer_hits = true;
+    /// trace(): the fast node test (node_intersect_fast.h: two child slots per instruction in
+    /// half precision) for every ray it accepts on sm_80 and newer. false: the reference node
+    /// arithmetic (node_intersect.h) for every ray, the same hits; to measure the difference
+    /// (cwbvh_gpu_check times both). No effect on trace_bvh2, trace_two_level or GPUs before
+    /// sm_80 (which never take the fast test).
+    bool fast_node_test = true;
 };
 
 /// CWBVH kernel. d_rays, d_hits: n records each, on scene.device(). A two-level
