@@ -35,7 +35,8 @@
 # enclosed ones; scene key = the .cwbvh file's stem), 2048x2048, primary + diffuse bounces 1-4.
 # Ray sets of fewer than 1M rays are printed but kept out of the geometric means.
 # Time on the 16-core GPU machine, all nine scenes: about 6 minutes expected (build, compile,
-# CPU reference, --repeat 3 on the five kernels (CWBVH, its two A/Bs, BVH2, OptiX), sanitizer; estimated from the CPU side
+# CPU reference, --repeat 3 on the five kernels (CWBVH, its two A/Bs, BVH2, OptiX) and the
+# postponing sweep, sanitizer; estimated from the CPU side
 # here, bench/README.md, "GPU: the three-way benchmark"): every scene keeps 2048x2048.
 #
 # usage: scripts/gpu-check.sh [extra cwbvh_gpu_check args, e.g. --width 1024 --height 1024 --repeat 9]
@@ -45,6 +46,9 @@
 #        CSV=path of the results table (default $BUILD/gpu_check.csv; commit a copy under
 #        bench/results/gpu/ with the command and the device)
 #        COMPILE_THREADS=N cwbvhc threads (default: nproc)
+#        POSTPONE_SWEEP=10,35,50 (default): cwbvh_gpu_check --postpone-sweep, the CWBVH kernel
+#        (closest hit) also timed at these triangle postponing thresholds, percent of active
+#        lanes (the default threshold is the paper's 20); empty: no sweep
 #        CWBVHC_ARGS="..." extra cwbvhc options for every scene, flattened and two-level (a
 #        tree experiment judged by GPU time over all views, e.g. "--collapse-cost-prim 0.6";
 #        use a separate BUILD folder so that the default files stay)
@@ -239,7 +243,11 @@ fi
 csv=${CSV:-$build/gpu_check.csv}
 log="$build/gpu_check.log"
 set +e
-"$build/bin/cwbvh_gpu_check" --csv "$csv" --compile-times "$times_file" "$@" "${scenes[@]}" 2>&1 | tee "$log"
+# The CWBVH kernel at other triangle postponing thresholds too (closest hit; the default is 20).
+postpone=${POSTPONE_SWEEP-10,35,50}
+sweep=()
+[[ -n "$postpone" ]] && sweep=(--postpone-sweep "$postpone")
+"$build/bin/cwbvh_gpu_check" --csv "$csv" --compile-times "$times_file" "${sweep[@]}" "$@" "${scenes[@]}" 2>&1 | tee "$log"
 rc=${PIPESTATUS[0]}
 set -e
 gpus=$(nvidia-smi -L 2>/dev/null | grep -c '^GPU ' || true)

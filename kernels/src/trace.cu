@@ -14,6 +14,8 @@
 namespace cwbvh {
 namespace {
 
+static_assert(TraceOptions{}.postpone_percent == uint32_t(kPostponePercent), "trace.h's default is the kernel's");
+
 using gpu::KernelEntry;
 
 /// Index: structure * 4 + test * 2 + query for the two structures' kernels, then the
@@ -62,6 +64,8 @@ void launch(int structure, const DeviceScene& scene, const Ray* d_rays, Hit* d_h
         throw std::invalid_argument("cwbvh::trace_bvh2: the scene has no BVH2 section (compile with --keep-sbvh)");
     if (n != 0 && (d_rays == nullptr || d_hits == nullptr))
         throw std::invalid_argument("cwbvh::trace: null ray or hit pointer");
+    if (options.postpone_percent > 100)
+        throw std::invalid_argument("cwbvh::trace: TraceOptions::postpone_percent above 100");
     const int k = structure == 0 && options.test == TriangleTest::kWatertight && !options.defer_hits
                       ? kWholeTestBase + (query == Query::kAny ? 1 : 0)
                       : structure * gpu::kKernelsPerStructure +
@@ -89,6 +93,7 @@ void launch(int structure, const DeviceScene& scene, const Ray* d_rays, Hit* d_h
                          p.work = work;
                          // NodeScale{} (usable 0): no ray takes the fast node test.
                          p.node_scale = options.fast_node_test ? scene.node_scale() : NodeScale{};
+                         p.postpone_percent = options.postpone_percent;
                          const uint32_t blocks =
                              gpu::launch_blocks(persistent_blocks(device, k, counting), options, count,
                                                 uint32_t(kernel.block_threads));

@@ -83,9 +83,10 @@ gpu::LaunchParams launch_params(const Fixture& f, KernelRun& r) {
 /// One launch of the kernel body over `nodes` (one block of `warps` warps: the kernel's
 /// persistent loop takes every ray), with the scene constants the device upload computes.
 KernelRun run_kernel(const std::vector<CwbvhNode>& nodes, const Fixture& f, TriangleTest test, HitMode mode,
-                     bool count, unsigned warps = 1, bool defer = true) {
+                     bool count, unsigned warps = 1, bool defer = true, int postpone = kPostponePercent) {
     KernelRun r;
     gpu::LaunchParams p = launch_params(f, r);
+    p.postpone_percent = uint32_t(postpone);
     p.nodes = nodes.data();
     p.node_count = uint32_t(nodes.size());
     p.node_scale = node_scale(nodes.data(), nodes.size());
@@ -106,12 +107,13 @@ KernelRun run_kernel(const std::vector<CwbvhNode>& nodes, const Fixture& f, Tria
 
 /// The warp model with one warp: the emulated one-warp kernel's schedule.
 WarpModelStats run_model(const std::vector<CwbvhNode>& nodes, const Fixture& f, TriangleTest test, HitMode mode,
-                         std::vector<Hit>& hits, bool defer = true) {
+                         std::vector<Hit>& hits, bool defer = true, int postpone = kPostponePercent) {
     WarpModelOptions o;
     o.mode = mode;
     o.test = test;
     o.warps = 1;
     o.defer_hits = defer;
+    o.postpone_percent = postpone;
     hits.assign(f.rays.size(), Hit{-1.0f, -1.0f, -1.0f, 12345u});
     return model_cwbvh_warps(nodes.data(), nodes.size(), f.scene.triangles.data(), f.scene.triangles.size(),
                              f.rays.data(), hits.data(), f.rays.size(), o);
@@ -267,6 +269,27 @@ TEST(KernelEmulation, KernelWithoutDeferredHitsAsTheWarpModelWithout) {
                 expect_same_hits(d.hits, reference(f, mode, TriangleTest::kWatertight), mode);
                 if (mode == HitMode::kClosest && !coplanar) expect_bitwise_equal(k.hits, d.hits);
             }
+        }
+    }
+}
+
+/// The postponing threshold comes from the launch (TraceOptions::postpone_percent): at 0
+/// (never), 35 and 100 (whenever not every lane wants triangles) the kernel schedules as the
+/// model with the same threshold, and answers as the reference.
+TEST(KernelEmulation, PostponingThresholdFromTheLaunchAsTheWarpModel) {
+    const Fixture& f = fixture();
+    for (int pc : {0, 35, 100}) {
+        SCOPED_TRACE(testing::Message() << "postpone " << pc);
+        std::vector<Hit> model_hits;
+        const WarpModelStats s =
+            run_model(f.scene.nodes, f, TriangleTest::kWatertight, HitMode::kClosest, model_hits, true, pc);
+        const KernelRun k = run_kernel(f.scene.nodes, f, TriangleTest::kWatertight, HitMode::kClosest, true, 1, true, pc);
+        expect_bitwise_equal(k.hits, model_hits);
+        EXPECT_EQ(k.work.nodes, s.lane_node_steps);
+        EXPECT_EQ(k.work.triangles, s.lane_tri_tests);
+        expect_same_hits(k.hits, reference(f, HitMode::kClosest, TriangleTest::kWatertight), HitMode::kClosest);
+        if (pc == 0) {
+            EXPECT_EQ(s.postponed, 0u);
         }
     }
 }

@@ -126,6 +126,34 @@ TEST(GpuCheckSummary, TheAbsGainsAreTheKernelWithoutThePartsTimeOverTheKernels) 
     EXPECT_NEAR(rows[0].ratio(kRn), 2.0, 1e-12);
 }
 
+TEST(GpuCheckSummary, APostponingThresholdIsMeasuredAgainstTheDefaultOnTheSameViews) {
+    // alpha: at 35 % its two views take 1.0 and 4.0 ms against the default's 2.0 and 2.0 (2x
+    // and 0.5x: scene mean 1); beta: 35 % not run, 50 % 0.8x; a small set is left out.
+    std::vector<Row> rows = {row("alpha", "a", 0, kBig, 2.0), row("alpha", "b", 0, kBig, 2.0),
+                             row("beta", "a", 0, kBig, 4.0), row("beta", "b", 0, 999, 1.0)};
+    auto at = [](double ms) {
+        KernelResult k;
+        k.ran = true;
+        k.ms = ms;
+        return k;
+    };
+    rows[0].postpone = {{35u, at(1.0)}, {50u, at(2.0)}};
+    rows[1].postpone = {{35u, at(4.0)}};
+    rows[2].postpone = {{50u, at(5.0)}};
+    rows[3].postpone = {{35u, at(0.1)}};
+    const SetMeans<2> p35 = postpone_means(rows, 0, 35);
+    EXPECT_EQ(p35.mean[kPostponeOverDefault].scenes, 1u);
+    EXPECT_NEAR(p35.mean[kPostponeOverDefault].value, 1.0, 1e-12);
+    EXPECT_NEAR(p35.mean[kPostponeMrays].value, mrays(kBig, 2.0), 1e-9);  // sqrt(M(1) M(4))
+    EXPECT_EQ(p35.left_out, 1u);
+    const SetMeans<2> p50 = postpone_means(rows, 0, 50);
+    EXPECT_EQ(p50.mean[kPostponeOverDefault].scenes, 2u);
+    EXPECT_NEAR(p50.mean[kPostponeOverDefault].value, std::sqrt(1.0 * 0.8), 1e-12);
+    EXPECT_EQ(postpone_means(rows, 0, 10).mean[kPostponeOverDefault].scenes, 0u);
+    EXPECT_EQ(rows[0].at_postpone(50)->ms, 2.0);
+    EXPECT_EQ(rows[1].at_postpone(50), nullptr);
+}
+
 TEST(GpuCheckSummary, AnyHitRowsAreNotInTheMeans) {
     Row any = row("alpha", "a", 0, kBig, 100.0, 1.0);
     any.query = "any";

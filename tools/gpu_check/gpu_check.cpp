@@ -173,6 +173,8 @@ struct DevBuf {
     DevBuf& operator=(const DevBuf&) = delete;
 };
 
+static_assert(TraceOptions{}.postpone_percent == kDefaultPostponePercent, "summary.h's default is trace.h's");
+
 /// kCwbvhNoDefer, kCwbvhRefNode: the CWBVH kernel with TraceOptions::defer_hits = false, or
 /// with fast_node_test = false.
 enum class Kernel { kCwbvh, kBvh2, kTwoLevel, kCwbvhNoDefer, kCwbvhRefNode };
@@ -183,7 +185,7 @@ enum class Kernel { kCwbvh, kBvh2, kTwoLevel, kCwbvhNoDefer, kCwbvhRefNode };
 /// `stats`. Returns the median kernel time in ms.
 double run_kernel(const DeviceScene& ds, Kernel kernel, const Ray* d_rays, Hit* d_hits, size_t n, bool any, int repeat,
                   std::vector<Hit>& hits, DeviceTraceStats& stats, uint32_t* d_inst = nullptr,
-                  std::vector<uint32_t>* inst = nullptr) {
+                  std::vector<uint32_t>* inst = nullptr, uint32_t postpone_percent = kDefaultPostponePercent) {
     const Query q = any ? Query::kAny : Query::kClosest;
     auto launch = [&](float* ms, DeviceTraceStats* st) {
         TraceOptions o;
@@ -191,6 +193,7 @@ double run_kernel(const DeviceScene& ds, Kernel kernel, const Ray* d_rays, Hit* 
         o.stats = st;
         o.defer_hits = kernel != Kernel::kCwbvhNoDefer;
         o.fast_node_test = kernel != Kernel::kCwbvhRefNode;
+        o.postpone_percent = postpone_percent;
         if (kernel == Kernel::kBvh2) trace_bvh2(ds, d_rays, d_hits, n, q, nullptr, o);
         else if (kernel == Kernel::kTwoLevel) trace_two_level(ds, d_rays, d_hits, d_inst, n, q, nullptr, o);
         else trace(ds, d_rays, d_hits, n, q, nullptr, o);
@@ -260,7 +263,8 @@ double run_optix(OptixPeer& peer, const Ray* d_rays, Hit* d_hits, size_t n, bool
 int usage() {
     std::fprintf(stderr,
                  "usage: cwbvh_gpu_check [--width W] [--height H] [--repeat R] [--views CATALOG] [--csv PATH]\n"
-                 "                       [--compile-times FILE] [--no-optix] [--cpu-only] [SCENE.cwbvh...]\n"
+                 "                       [--compile-times FILE] [--no-optix] [--postpone-sweep P,P...] [--cpu-only]\n"
+                 "                       [SCENE.cwbvh...]\n"
                  "  rays: every catalog view of each scene (default camera for a scene not in the catalog),\n"
                  "  W x H (default 2048 x 2048) primary rays and diffuse bounces 1-4; R timed runs (default 5).\n"
                  "  no scene: a synthetic 20k-triangle scene (builds with the compiler only). --cpu-only: generate "
@@ -268,6 +272,8 @@ int usage() {
                  "  (exercises everything but the GPU; used where there is no device).\n"
                  "  --compile-times FILE: lines 'SCENE SECONDS' (scripts/gpu-check.sh), shown in the scene table.\n"
                  "  --no-optix: leave the OptiX peer out (built only with -DCWBVH_OPTIX_INCLUDE_DIR).\n"
+                 "  --postpone-sweep P,P...: also time the CWBVH kernel (closest hit) at these triangle postponing\n"
+                 "  thresholds (percent of active lanes, 0-100; the default is 20), hits checked as the others'.\n"
                  "  ray sets of fewer than 1M rays are printed ('*') but kept out of the geometric means.\n"
                  "  two-level files (format 1.2): each beside the flattened file of the same stem (another folder);\n"
                  "  the two-level kernel then traces the flattened file's rays (compile time key: instanced:NAME).\n"
@@ -402,6 +408,17 @@ std::string csv_num(bool ran, double v) {
     return std::string(b);
 }
 
+/// The CSV's postpone_sweep cell: "P:ms:mismatches" per threshold, ';' between.
+std::string postpone_cell(const Row& r) {
+    std::string out;
+    for (const auto& [pc, k] : r.postpone) {
+        if (!k.ran) continue;
+        if (!out.empty()) out += ';';
+        out += std::to_string(pc) + ':' + csv_num(true, k.ms) + ':' + std::to_string(k.mismatches);
+    }
+    return out;
+}
+
 bool write_csv(const std::string& path, const std::vector<Row>& rows, const std::string& device, int width,
                int height, int repeat) {
     std::ofstream f(path);
@@ -412,7 +429,7 @@ bool write_csv(const std::string& path, const std::vector<Row>& rows, const std:
          "optix_ms,optix_mrays,cwbvh_over_optix,optix_mismatches,optix_hit_vs_miss,optix_ties,in_means,"
          "inline_ms,inline_mrays,inline_over_cwbvh,inline_mismatches,inline_not_ok,nodefer_ms,nodefer_mrays,"
          "cwbvh_over_nodefer,nodefer_mismatches,refnode_ms,refnode_mrays,cwbvh_over_refnode,refnode_nodes_per_ray,"
-         "refnode_mismatches\n";
+         "refnode_mismatches,postpone_sweep\n";
     const auto& num = csv_num;
     auto cnt = [](bool ran, uint64_t v) { return ran ? std::to_string(v) : std::string(); };
     for (const Row& r : rows) {
@@ -432,7 +449,7 @@ bool write_csv(const std::string& path, const std::vector<Row>& rows, const std:
           << ',' << num(d.ran, d.mrays) << ',' << num(r.ratio(kNd) > 0, r.ratio(kNd)) << ','
           << cnt(d.ran, d.mismatches) << ',' << num(n.ran, n.ms) << ',' << num(n.ran, n.mrays) << ','
           << num(r.ratio(kRn) > 0, r.ratio(kRn)) << ',' << num(n.ran, n.nodes_per_ray) << ','
-          << cnt(n.ran, n.mismatches) << '\n';
+          << cnt(n.ran, n.mismatches) << ',' << postpone_cell(r) << '\n';
     }
     return bool(f);
 }
@@ -499,6 +516,7 @@ int main(int argc, char** argv) {
     std::setvbuf(stdout, nullptr, _IOLBF, 0);
     int width = 2048, height = 2048, repeat = 5;
     bool cpu_only = false, no_optix = false;
+    std::vector<uint32_t> postpone_sweep;
     std::string views_path, csv_path, compile_times_path;
     std::vector<std::string> paths;
     for (int i = 1; i < argc; ++i) {
@@ -523,6 +541,20 @@ int main(int argc, char** argv) {
         else if (a == "--csv") { if (!str(csv_path)) return usage(); }
         else if (a == "--compile-times") { if (!str(compile_times_path)) return usage(); }
         else if (a == "--no-optix") no_optix = true;
+        else if (a == "--postpone-sweep") {
+            if (i + 1 >= argc) return usage();
+            std::istringstream in(argv[++i]);
+            std::string item;
+            while (std::getline(in, item, ',')) {
+                char* end = nullptr;
+                const long x = std::strtol(item.c_str(), &end, 10);
+                if (item.empty() || *end != '\0' || x < 0 || x > 100) return usage();
+                if (uint32_t(x) != kDefaultPostponePercent &&
+                    std::find(postpone_sweep.begin(), postpone_sweep.end(), uint32_t(x)) == postpone_sweep.end())
+                    postpone_sweep.push_back(uint32_t(x));
+            }
+            if (postpone_sweep.empty()) return usage();
+        }
         else if (a == "--cpu-only") cpu_only = true;
         else if (a == "-h" || a == "--help") return usage();
         else if (!a.empty() && a[0] == '-') return usage();
@@ -944,26 +976,16 @@ int main(int argc, char** argv) {
                             }
 #endif
                             std::vector<Hit> cw_hits;  // the flattened file's CWBVH kernel (two-level comparison)
-                            // The CWBVH kernel, BVH2, and the CWBVH kernel's A/Bs: without deferred
-                            // hits, with the reference node test.
-                            for (const int k : {kCw, kB2, kNd, kRn}) {
-                                const bool bvh2 = k == kB2;
-                                if (bvh2 && !ds->has_bvh2()) continue;
-                                const char* kname = bvh2        ? "bvh2"
-                                                    : k == kNd  ? "cwbvh_nodefer"
-                                                    : k == kRn  ? "cwbvh_refnode"
-                                                                : "cwbvh";
-                                std::vector<Hit> hits;
+                            // One of our kernels on these rays, its hits checked against the CPU
+                            // reference (a mismatch or bad index fails the check); `hits` keeps them.
+                            auto run_checked = [&](Kernel which, const char* kname, uint32_t postpone,
+                                                   std::vector<Hit>& hits) {
                                 DeviceTraceStats st;
-                                const Kernel which = bvh2       ? Kernel::kBvh2
-                                                     : k == kNd ? Kernel::kCwbvhNoDefer
-                                                     : k == kRn ? Kernel::kCwbvhRefNode
-                                                                : Kernel::kCwbvh;
                                 const double ms = run_kernel(*ds, which, d_rays.p, d_hits.p, rays.size(), any != 0,
-                                                             repeat, hits, st);
+                                                             repeat, hits, st, nullptr, nullptr, postpone);
                                 const std::vector<Hit>& cpu = any ? ref_any : ref;
                                 const HitCompare c = compare_hits(hits, cpu, any != 0, kKernelUlpBound);
-                                KernelResult& kr = r.k[k];
+                                KernelResult kr;
                                 kr.ran = true;
                                 kr.ms = ms;
                                 kr.mrays = ms > 0 ? double(rays.size()) / (ms * 1e3) : 0.0;
@@ -989,7 +1011,31 @@ int main(int argc, char** argv) {
                                                     (unsigned long long)c.mismatches);
                                     }
                                 }
+                                return kr;
+                            };
+                            // The CWBVH kernel, BVH2, and the CWBVH kernel's A/Bs: without deferred
+                            // hits, with the reference node test.
+                            for (const int k : {kCw, kB2, kNd, kRn}) {
+                                const bool bvh2 = k == kB2;
+                                if (bvh2 && !ds->has_bvh2()) continue;
+                                const char* kname = bvh2        ? "bvh2"
+                                                    : k == kNd  ? "cwbvh_nodefer"
+                                                    : k == kRn  ? "cwbvh_refnode"
+                                                                : "cwbvh";
+                                const Kernel which = bvh2       ? Kernel::kBvh2
+                                                     : k == kNd ? Kernel::kCwbvhNoDefer
+                                                     : k == kRn ? Kernel::kCwbvhRefNode
+                                                                : Kernel::kCwbvh;
+                                std::vector<Hit> hits;
+                                r.k[k] = run_checked(which, kname, kDefaultPostponePercent, hits);
                                 if (k == kCw) cw_hits = std::move(hits);
+                            }
+                            // --postpone-sweep: the CWBVH kernel at other thresholds, closest hit.
+                            for (const uint32_t pc : any ? std::vector<uint32_t>{} : postpone_sweep) {
+                                char kname[40];
+                                std::snprintf(kname, sizeof kname, "cwbvh_postpone%u", pc);
+                                std::vector<Hit> hits;
+                                r.postpone.emplace_back(pc, run_checked(Kernel::kCwbvh, kname, pc, hits));
                             }
                             if (!ds->has_two_level()) {  // the inline query, one thread per ray
                                 std::vector<Hit> hits;
@@ -1109,6 +1155,7 @@ int main(int argc, char** argv) {
     print_summary(rows);
     print_two_level_summary(rows);
     print_inline_summary(rows);
+    print_postpone_summary(rows);
     std::printf("%s\n", failed ? "RESULT: FAIL" : "RESULT: PASS");
     return failed ? 1 : 0;
 }

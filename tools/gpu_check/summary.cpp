@@ -152,6 +152,19 @@ SetMeans<3> inline_means(const std::vector<Row>& rows, int set) {
     });
 }
 
+SetMeans<2> postpone_means(const std::vector<Row>& rows, int set, uint32_t percent) {
+    const RowIndex index(rows, [percent](const Row& r) {
+        const KernelResult* k = r.at_postpone(percent);
+        return k && k->ran && r.k[kCw].ran;
+    });
+    return set_means<2>(index, set, [percent](const std::vector<const Row*>& rs, double n) -> std::optional<std::array<double, 2>> {
+        const double msp = sum_ms(rs, [percent](const Row& r) -> const KernelResult& { return *r.at_postpone(percent); });
+        const double msc = sum_ms(rs, [](const Row& r) -> const KernelResult& { return r.k[kCw]; });
+        if (msp <= 0 || msc <= 0) return std::nullopt;
+        return std::array<double, 2>{n / (msp * 1e3), msc / msp};
+    });
+}
+
 void print_summary(const std::vector<Row>& rows) {
     std::printf("\nGeometric mean over %zu scene(s) (each scene: geometric mean over its views), closest hit; "
                 "ray sets of fewer than %zu rays left out:\n",
@@ -240,6 +253,27 @@ void print_inline_summary(const std::vector<Row>& rows) {
     std::printf("inline query vs the CPU reference, all rays and queries: %llu rays not bit for bit, %llu overflows "
                 "or bad indices (each a failure)\n",
                 (unsigned long long)mis, (unsigned long long)not_ok);
+}
+
+void print_postpone_summary(const std::vector<Row>& rows) {
+    std::vector<uint32_t> percents;
+    for (const Row& r : rows)
+        for (const auto& [pc, k] : r.postpone)
+            if (k.ran && std::find(percents.begin(), percents.end(), pc) == percents.end()) percents.push_back(pc);
+    if (percents.empty()) return;
+    std::sort(percents.begin(), percents.end());
+    std::printf("\nTriangle postponing threshold (TraceOptions::postpone_percent), CWBVH kernel, closest hit: speed at "
+                "P %% over speed at the default %u %%, geometric mean over scenes (> 1: P is faster):\n",
+                kDefaultPostponePercent);
+    std::printf("%-14s", "rays");
+    for (uint32_t pc : percents) std::printf(" %8u %%", pc);
+    std::printf("\n");
+    for (int set = 0; set <= kDiffuseAll; ++set) {
+        std::printf("%-14s", kind_name(set));
+        for (uint32_t pc : percents)
+            std::printf(" %10s", mean_cell(postpone_means(rows, set, pc).mean[kPostponeOverDefault], "%.3fx").c_str());
+        std::printf("\n");
+    }
 }
 
 }  // namespace cwbvh::gpu_check

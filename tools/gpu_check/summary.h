@@ -21,6 +21,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "hit_compare.h"
@@ -35,6 +36,9 @@ constexpr int kKernels = 5;  ///< CWBVH, BVH2, OptiX, and the CWBVH kernel witho
 /// kNd without deferred hit distances (TraceOptions::defer_hits = false), kRn with the
 /// reference node test for every ray (TraceOptions::fast_node_test = false).
 constexpr int kCw = 0, kB2 = 1, kOx = 2, kNd = 3, kRn = 4;
+/// TraceOptions::postpone_percent's default (gpu_check.cpp checks that they agree; this
+/// header stays free of CUDA).
+constexpr uint32_t kDefaultPostponePercent = 20;
 
 /// One kernel's result on one ray set and query.
 struct KernelResult {
@@ -66,6 +70,15 @@ struct Row {
     KernelResult k[kKernels];  ///< [kCw] CWBVH, [kB2] BVH2, [kOx] OptiX, [kNd], [kRn] CWBVH A/Bs
     TwoLevelResult tl;         ///< the instanced file (tl.present)
     KernelResult inl;          ///< the inline query (query.h) on the same file; mismatches: bitwise vs the CPU
+    /// --postpone-sweep: the CWBVH kernel at other postponing thresholds (TraceOptions::
+    /// postpone_percent), closest hit only: (percent, result).
+    std::vector<std::pair<uint32_t, KernelResult>> postpone;
+    /// The result at postponing threshold `percent`, or null.
+    const KernelResult* at_postpone(uint32_t percent) const {
+        for (const auto& [pc, result] : postpone)
+            if (pc == percent) return &result;
+        return nullptr;
+    }
     /// Two-level kernel speed over the flattened file's CWBVH kernel's, 0 when either did not run.
     double tl_ratio() const {
         return tl.k.ran && k[kCw].ran && k[kCw].mrays > 0 ? tl.k.mrays / k[kCw].mrays : 0.0;
@@ -120,9 +133,16 @@ SetMeans<3> two_level_means(const std::vector<Row>& rows, int set);
 enum InlineFigure { kInlineMrays, kInlineCwbvhMrays, kInlineOverCwbvh };
 SetMeans<3> inline_means(const std::vector<Row>& rows, int set);
 
+/// The CWBVH kernel at postponing threshold `percent` beside itself at the default, closest
+/// hit, on views where both ran: Mrays/s at percent, default time / time at percent (> 1:
+/// that threshold is faster).
+enum PostponeFigure { kPostponeMrays, kPostponeOverDefault };
+SetMeans<2> postpone_means(const std::vector<Row>& rows, int set, uint32_t percent);
+
 /// The summary tables (stdout), from the functions above.
 void print_summary(const std::vector<Row>& rows);
 void print_two_level_summary(const std::vector<Row>& rows);
 void print_inline_summary(const std::vector<Row>& rows);
+void print_postpone_summary(const std::vector<Row>& rows);
 
 }  // namespace cwbvh::gpu_check

@@ -17,6 +17,7 @@
 #include <cstring>
 
 #include "cwbvh/format/format.h"
+#include "cwbvh/kernels/gpu_stack.h"
 #include "cwbvh/kernels/node_intersect_fast.h"
 #include "cwbvh/kernels/ray.h"
 #include "cwbvh/kernels/traverse.h"
@@ -53,6 +54,8 @@ struct LaunchParams {
     uint32_t ray_count;
     WorkArea* work;
     NodeScale node_scale;  ///< the CWBVH kernel's fast node test (DeviceScene::node_scale)
+    /// The CWBVH kernel's triangle postponing threshold (should_postpone; TraceOptions).
+    uint32_t postpone_percent = kPostponePercent;
 };
 
 // ---------------------------------------------------------------------------

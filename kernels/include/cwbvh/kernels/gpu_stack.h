@@ -147,8 +147,9 @@ CWBVH_HD CWBVH_INLINE int update_lost_work(int lost, int active_lanes, int nd = 
 inline constexpr int kPostponePercent = 20;
 inline constexpr bool kPostponeOnlyWithNodeWork = false;
 
-/// percent, only_with_node_work: the kernel uses the constants above; the warp
-/// model varies them.
+/// percent: the kernel's from its launch (TraceOptions::postpone_percent, default
+/// kPostponePercent), the warp model's from its options; only_with_node_work: the
+/// kernel uses the constant above, the warp model varies it.
 CWBVH_HD CWBVH_INLINE bool should_postpone(int lanes_wanting_triangles, int active_lanes, bool has_node_work,
                                            int percent = kPostponePercent,
                                            bool only_with_node_work = kPostponeOnlyWithNodeWork) {

@@ -68,6 +68,12 @@ struct TraceOptions {
     /// (cwbvh_gpu_check times both). No effect on trace_bvh2, trace_two_level or GPUs before
     /// sm_80 (which never take the fast test).
     bool fast_node_test = true;
+    /// trace(): triangle postponing (Ylitie et al. 4.2): a lane pushes its triangles back
+    /// when fewer than this percentage of the warp's active lanes want to test triangles in
+    /// a round. 0 never postpones; at most 100. The default is the paper's 20 (kPostponePercent
+    /// in gpu_stack.h; on 2026-11-25's H100, 10 and 35 were slower). Any value gives the same
+    /// hits (ties at equal t aside); it is there to measure (cwbvh_gpu_check --postpone-sweep).
+    uint32_t postpone_percent = 20;
 };
 
 /// CWBVH kernel. d_rays, d_hits: n records each, on scene.device(). A two-level

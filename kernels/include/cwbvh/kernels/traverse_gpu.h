@@ -250,7 +250,8 @@ __device__ __forceinline__ void trace_cwbvh_persistent(const LaunchParams& p, Pa
                 const unsigned wanting = __ballot_sync(kFullMask, wants);
                 if (wanting == 0) break;
                 if (wants) {
-                    if (should_postpone(__popc(wanting), active_lanes, l.has_node_work())) {
+                    if (should_postpone(__popc(wanting), active_lanes, l.has_node_work(),
+                                        int(p.postpone_percent))) {
                         if (!postpone_triangles(l, stack)) finish(TraceStatus::kStackOverflow);
                     } else {
                         const uint32_t ti = take_next_triangle(l);  // next_triangle, checked here
