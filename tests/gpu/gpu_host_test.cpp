@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include <sys/wait.h>
+
 #include "cwbvh/compiler/synthetic.h"
 #include "cwbvh/kernels/cpu_trace.h"
 #include "cwbvh/cwbvh_device.h"
@@ -173,6 +175,40 @@ TEST(GpuCheckTool, SkipsOrPassesOnSyntheticScene) {
         std::fclose(o);
         EXPECT_EQ(std::string(buf, n).rfind("SKIPPED: no CUDA device", 0), 0u) << buf;
     }
+}
+
+// --deadline-s (scripts/gpu-check.sh: DEADLINE_S): past it the check starts no scene or view,
+// prints where it stopped and its tables, and exits 4 (RESULT: PARTIAL on a GPU). CPU only: the
+// CPU reference of one 1024 x 1024 view (five bounces, closest and any hit) outlasts 1 s.
+TEST(GpuCheckTool, DeadlineStopsBeforeTheNextViewAndSaysSo) {
+    const std::string bin = std::string(CWBVH_BIN_DIR);
+    const std::string bunny = "/usr/share/glmark2/models/bunny.obj";
+    FILE* f = std::fopen((bin + "/cwbvh_gpu_check").c_str(), "rb");
+    if (!f) GTEST_SKIP() << "cwbvh_gpu_check not built";
+    std::fclose(f);
+    if (!(f = std::fopen(bunny.c_str(), "rb"))) GTEST_SKIP() << bunny << " absent (glmark2-data)";
+    std::fclose(f);
+    // The scene key is the file's stem: bunny, whose catalog views start with front.
+    const std::string dir = std::string(CWBVH_BINARY_DIR) + "/gpu_check_deadline";
+    ASSERT_EQ(std::system(("mkdir -p " + dir).c_str()), 0);
+    const std::string file = dir + "/bunny.cwbvh", out = dir + "/output.txt";
+    ASSERT_EQ(std::system((bin + "/cwbvhc " + bunny + " -o " + file + " --quiet").c_str()), 0);
+    const std::string cmd = bin + "/cwbvh_gpu_check --cpu-only --width 1024 --height 1024 --repeat 1 --deadline-s 1 " +
+                            file + " " + file + " > " + out + " 2>&1";
+    const int rc = std::system(cmd.c_str());
+    ASSERT_TRUE(WIFEXITED(rc));
+    EXPECT_EQ(WEXITSTATUS(rc), 4);
+    std::string text;
+    if (FILE* o = std::fopen(out.c_str(), "rb")) {
+        char buf[4096];
+        size_t n;
+        while ((n = std::fread(buf, 1, sizeof buf, o)) > 0) text.append(buf, n);
+        std::fclose(o);
+    }
+    EXPECT_NE(text.find("DEADLINE: stopped before scene bunny"), std::string::npos) << text;
+    EXPECT_NE(text.find("bunny view front"), std::string::npos) << "the first view ran";
+    EXPECT_NE(text.find("(partial: deadline)"), std::string::npos) << text;
+    std::remove(file.c_str());
 }
 
 TEST(GpuTrace, MatchesCpuOnSyntheticScene) {
