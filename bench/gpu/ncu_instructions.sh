@@ -9,6 +9,9 @@
 #
 # usage: bench/gpu/ncu_instructions.sh [--primary] [--size N] SCENE.cwbvh...
 # env:   CWBVH=path of the cwbvh tool (default build-gpu/bin/cwbvh, then build/bin/cwbvh)
+#        AB=1: also the CWBVH kernel without deferred hit distances (ND) and with the reference
+#        node test for every ray (RN), `cwbvh trace --gpu --no-defer-hits | --reference-node-test`:
+#        two more profiled runs per view, and their instructions per ray beside the kernel's
 #        NCU=path of ncu (default: ncu on PATH, then /usr/local/cuda/bin/ncu)
 # output: one line per scene and view, then the worst ratio; exit 0 when every line ran.
 set -euo pipefail
@@ -49,7 +52,12 @@ print(int(vals[0]) if vals else "")'
 }
 ray_count() { python3 -c 'import struct, sys; print(struct.unpack_from("<Q", open(sys.argv[1], "rb").read(32), 16)[0])' "$1"; }
 
-printf '%-24s %-14s %10s %12s %12s %7s\n' scene view rays "CWBVH/ray" "BVH2/ray" ratio
+ab=${AB:-0}
+if [[ "$ab" == 1 ]]; then
+  printf '%-24s %-14s %10s %12s %12s %7s %12s %12s\n' scene view rays "CWBVH/ray" "BVH2/ray" ratio "ND/ray" "RN/ray"
+else
+  printf '%-24s %-14s %10s %12s %12s %7s\n' scene view rays "CWBVH/ray" "BVH2/ray" ratio
+fi
 worst=0
 for scene in "$@"; do
   stem=$(basename "${scene%.cwbvh}")
@@ -63,14 +71,23 @@ for scene in "$@"; do
     n=$(ray_count "$rays")
     cw=$(instructions 'cwbvh_trace_kernel' "$cwbvh" trace "$scene" --rays "$rays" --gpu)
     b2=$(instructions 'bvh2_trace_kernel' "$cwbvh" trace "$scene" --rays "$rays" --gpu --bvh2)
-    if [[ -z "$cw" || -z "$b2" ]]; then
+    nd=0; rn=0
+    if [[ "$ab" == 1 ]]; then
+      nd=$(instructions 'cwbvh_trace_kernel' "$cwbvh" trace "$scene" --rays "$rays" --gpu --no-defer-hits)
+      rn=$(instructions 'cwbvh_trace_kernel' "$cwbvh" trace "$scene" --rays "$rays" --gpu --reference-node-test)
+    fi
+    if [[ -z "$cw" || -z "$b2" || -z "$nd" || -z "$rn" ]]; then
       echo "ncu_instructions: $stem $view: ncu gave no figure (kernel names, permissions?)" >&2
       exit 1
     fi
-    python3 - "$stem" "$view" "$n" "$cw" "$b2" <<'EOF'
+    python3 - "$stem" "$view" "$n" "$cw" "$b2" "$nd" "$rn" <<'EOF'
 import sys
-stem, view, n, cw, b2 = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5])
-print(f"{stem:24s} {view:14s} {n:10d} {cw / n:12.1f} {b2 / n:12.1f} {cw / b2:7.3f}")
+stem, view = sys.argv[1], sys.argv[2]
+n, cw, b2, nd, rn = (int(x) for x in sys.argv[3:8])
+line = f"{stem:24s} {view:14s} {n:10d} {cw / n:12.1f} {b2 / n:12.1f} {cw / b2:7.3f}"
+if nd or rn:
+    line += f" {nd / n:12.1f} {rn / n:12.1f}"
+print(line)
 EOF
     worst=$(python3 -c "print(max($worst, $cw / $b2))")
   done

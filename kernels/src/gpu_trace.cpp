@@ -126,6 +126,9 @@ Expected<GpuTraceResult> trace_on_gpu(const File& file, const Ray* rays, Hit* hi
         const Query q = options.any ? Query::kAny : Query::kClosest;
         TraceOptions to;
         to.test = options.test;
+        to.defer_hits = options.defer_hits;
+        to.fast_node_test = options.fast_node_test;
+        to.postpone_percent = options.postpone_percent;
         DeviceTraceStats stats;
         std::vector<double> times;
         const int repeat = std::max(1, options.repeat);

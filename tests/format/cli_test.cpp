@@ -69,6 +69,25 @@ TEST(Cli, UsageErrors) {
     EXPECT_EQ(run("--help").code, 0);
 }
 
+// trace's A/B options change the CWBVH kernel on the GPU: on the CPU or with --bvh2 they are a
+// usage error (exit 2, one line that says so), as is a postponing threshold above 100.
+TEST(Cli, TraceKernelOptionsNeedTheGpuKernel) {
+    const std::string path = test::write_temp("cli_ab.cwbvh", test::synthetic_file());
+    const std::string rays = test::temp_dir() + "/cli_ab.rays";
+    ASSERT_EQ(run("rays " + path + " --primary --width 8 --height 8 -o " + rays).code, 0);
+    for (const std::string opt : {"--no-defer-hits", "--reference-node-test", "--postpone-percent 35"}) {
+        for (const std::string where : {"", " --cpu", " --gpu --bvh2"}) {
+            const ToolRun r = run("trace " + path + " --rays " + rays + " " + opt + where);
+            EXPECT_EQ(r.code, 2) << opt << where << r.out;
+            EXPECT_EQ(lines(r.out), 1u) << r.out;
+            EXPECT_NE(r.out.find("they need --gpu, without --bvh2"), std::string::npos) << r.out;
+        }
+    }
+    const ToolRun high = run("trace " + path + " --rays " + rays + " --gpu --postpone-percent 101");
+    EXPECT_EQ(high.code, 2);
+    EXPECT_NE(high.out.find("[0, 100]"), std::string::npos) << high.out;
+}
+
 // `cwbvh VERB --help` prints the verb's usage and options to stdout and exits 0 (it was
 // "unknown option --help", exit 2); `cwbvh --help` lists every verb with its options.
 TEST(Cli, VerbHelp) {

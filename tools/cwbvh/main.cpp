@@ -43,7 +43,8 @@ constexpr Verb kVerbs[] = {
      "  --threads N             CPU threads of the diffuse bounces' reference traces (default all)\n"
      "  -o, --output RAYS       the ray file to write\n"},
     {"trace", run_trace,
-     "trace FILE --rays RAYS [--hits HITS] [--any] [--fast] [--bvh2] [--cpu|--gpu] [--threads N] [--repeat K]",
+     "trace FILE --rays RAYS [--hits HITS] [--any] [--fast] [--bvh2] [--cpu|--gpu] [--threads N] [--repeat K] "
+     "[--no-defer-hits] [--reference-node-test] [--postpone-percent P]",
      "  traces a ray file and prints Mrays/s, nodes and triangles per ray\n"
      "  --rays RAYS       the ray file (cwbvh rays)\n"
      "  --hits HITS       write the hit file (spec/rays.md; two-level files: hit file 1.1 with instances)\n"
@@ -52,7 +53,11 @@ constexpr Verb kVerbs[] = {
      "  --bvh2            the BVH2 baseline over the file's BV2L section (cwbvhc --keep-sbvh)\n"
      "  --cpu | --gpu     the CPU reference (default) or the CUDA kernels\n"
      "  --threads N       CPU threads (default all)\n"
-     "  --repeat K        timed runs, the median is printed (default 1)\n"},
+     "  --repeat K        timed runs, the median is printed (default 1)\n"
+     "  --no-defer-hits, --reference-node-test, --postpone-percent P   with --gpu, the CWBVH kernel of a\n"
+     "                    single-level file without deferred hit distances, with the reference node test for\n"
+     "                    every ray, or postponing triangles below P % of active lanes (default 20): A/B runs,\n"
+     "                    the same hits\n"},
     {"model", run_model,
      "model FILE --rays RAYS [--bvh2|--bvh2-2009] [--any] [--fast] [--warps N] [--no-postpone] "
      "[--postpone-percent P] [--postpone-with-node-work] [--no-dynamic-fetch] [--nd N --nw N] "

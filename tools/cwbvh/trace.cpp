@@ -1,5 +1,6 @@
 // cwbvh trace FILE --rays RAYS [--hits HITS] [--any] [--fast] [--bvh2]
 //                  [--cpu | --gpu] [--threads N] [--repeat K]
+//                  [--no-defer-hits] [--reference-node-test] [--postpone-percent P]
 // Traces a ray file against a compiled scene and prints throughput and work
 // counters; optionally writes the hit file (spec/rays.md).
 //
@@ -28,6 +29,7 @@ namespace {
 struct TraceRequest {
     bool any = false;
     bool fast = false;
+    GpuTraceOptions ab;  ///< the CWBVH kernel's A/B options (--gpu; defer_hits, fast_node_test, postpone_percent)
     bool bvh2 = false;
     unsigned threads = 0;
 };
@@ -37,7 +39,7 @@ struct TraceRequest {
 /// kernel time, so Mrays/s is the kernel's rate, excluding transfers).
 bool trace_gpu(const File& file, const std::vector<Ray>& rays, std::vector<Hit>& hits,
                std::vector<uint32_t>& instances, const TraceRequest& r, CpuTraceStats& stats, std::string& err) {
-    GpuTraceOptions o;
+    GpuTraceOptions o = r.ab;
     o.any = r.any;
     o.kernel = r.bvh2 ? GpuKernel::kBvh2 : GpuKernel::kCwbvh;
     o.test = r.fast ? TriangleTest::kFast : TriangleTest::kWatertight;
@@ -83,12 +85,12 @@ CpuTraceStats trace_cpu(const File& f, const std::vector<Ray>& rays, std::vector
 int run_trace(int argc, char** argv) {
     const char* usage =
         "usage: cwbvh trace FILE --rays RAYS [--hits HITS] [--any] [--fast] [--bvh2] [--cpu|--gpu] "
-        "[--threads N] [--repeat K]";
+        "[--threads N] [--repeat K] [--no-defer-hits] [--reference-node-test] [--postpone-percent P]";
     const char* path = nullptr;
     const char* rays_path = nullptr;
     const char* hits_path = nullptr;
     TraceRequest req;
-    bool gpu = false;
+    bool gpu = false, ab = false;
     uint32_t threads = 0, repeat = 1;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
@@ -112,6 +114,16 @@ int run_trace(int argc, char** argv) {
         } else if (a == "--repeat") {
             if (!parse_u32(option_value(argc, argv, i), 1, 1000, repeat))
                 return error(kExitUsage, "trace: --repeat needs an integer in [1, 1000]");
+        } else if (a == "--no-defer-hits") {
+            req.ab.defer_hits = false;
+            ab = true;
+        } else if (a == "--reference-node-test") {
+            req.ab.fast_node_test = false;
+            ab = true;
+        } else if (a == "--postpone-percent") {
+            if (!parse_u32(option_value(argc, argv, i), 0, 100, req.ab.postpone_percent))
+                return error(kExitUsage, "trace: --postpone-percent needs an integer in [0, 100]");
+            ab = true;
         } else if (a.size() > 1 && a[0] == '-') {
             return error(kExitUsage, ("trace: unknown option " + a).c_str());
         } else if (path) {
@@ -130,6 +142,9 @@ int run_trace(int argc, char** argv) {
     auto file = File::open(path, {true, trace_section_mask(req.bvh2 ? kMaskBvh2 : 0u)});
     if (!file.ok()) return error(kExitBadInput, file.error().describe().c_str());
     const bool two_level = file->is_two_level();
+    if (ab && (!gpu || req.bvh2 || two_level))
+        return error(kExitUsage, "trace: --no-defer-hits, --reference-node-test and --postpone-percent change the "
+                                 "CWBVH kernel of a single-level file: they need --gpu, without --bvh2");
     if (two_level && req.bvh2)
         return error(kExitBadInput, (std::string(path) + ": a two-level scene: --bvh2 traces single-level files only "
                                                          "(compile with cwbvhc --flatten)")

@@ -25,6 +25,11 @@ struct GpuTraceOptions {
     TriangleTest test = TriangleTest::kWatertight;
     int repeat = 1;                            ///< timed kernel runs, after one untimed warm-up run
     int device = -1;                           ///< CUDA device; -1: current (0)
+    /// The CWBVH kernel of a single-level file (trace.h's TraceOptions, for A/B runs; the
+    /// same hits): deferred hit distances, the fast node test, the postponing threshold.
+    bool defer_hits = true;
+    bool fast_node_test = true;
+    uint32_t postpone_percent = 20;
 };
 
 /// What a successful trace_on_gpu measured.
