@@ -87,6 +87,8 @@ Expected<GpuTraceResult> trace_on_gpu(const File& file, const Ray* rays, Hit* hi
                                       const GpuTraceOptions& options) {
     GpuTraceResult r;
     r.rays = n;
+    if (options.postpone_percent > 100)
+        return Result::fail(Status::kInvalidArgument, 0, "GpuTraceOptions::postpone_percent above 100");
     std::string why;
     if (!gpu_available(why)) return Result::fail(Status::kDeviceError, 0, why);
     try {

@@ -7,6 +7,7 @@
 
 #include "cwbvh/kernels/cuda_check.h"
 #include "cwbvh/kernels/gpu_common.h"
+#include "cwbvh/kernels/gpu_trace.h"
 #include "cwbvh/kernels/trace.h"
 #include "batched_launch.h"
 #include "kernel_table.h"
@@ -15,6 +16,7 @@ namespace cwbvh {
 namespace {
 
 static_assert(TraceOptions{}.postpone_percent == uint32_t(kPostponePercent), "trace.h's default is the kernel's");
+static_assert(GpuTraceOptions{}.postpone_percent == uint32_t(kPostponePercent), "gpu_trace.h's default is the kernel's");
 
 using gpu::KernelEntry;
 

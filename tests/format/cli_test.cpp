@@ -70,7 +70,8 @@ TEST(Cli, UsageErrors) {
 }
 
 // trace's A/B options change the CWBVH kernel on the GPU: on the CPU or with --bvh2 they are a
-// usage error (exit 2, one line that says so), as is a postponing threshold above 100.
+// usage error (exit 2, one line that says so), as are --no-defer-hits with the fast test (which
+// never defers: the same kernel twice) and a postponing threshold above 100.
 TEST(Cli, TraceKernelOptionsNeedTheGpuKernel) {
     const std::string path = test::write_temp("cli_ab.cwbvh", test::synthetic_file());
     const std::string rays = test::temp_dir() + "/cli_ab.rays";
@@ -83,6 +84,9 @@ TEST(Cli, TraceKernelOptionsNeedTheGpuKernel) {
             EXPECT_NE(r.out.find("they need --gpu, without --bvh2"), std::string::npos) << r.out;
         }
     }
+    const ToolRun fast = run("trace " + path + " --rays " + rays + " --gpu --fast --no-defer-hits");
+    EXPECT_EQ(fast.code, 2);
+    EXPECT_NE(fast.out.find("never defers"), std::string::npos) << fast.out;
     const ToolRun high = run("trace " + path + " --rays " + rays + " --gpu --postpone-percent 101");
     EXPECT_EQ(high.code, 2);
     EXPECT_NE(high.out.find("[0, 100]"), std::string::npos) << high.out;

@@ -83,13 +83,15 @@ gpu::LaunchParams launch_params(const Fixture& f, KernelRun& r) {
 /// One launch of the kernel body over `nodes` (one block of `warps` warps: the kernel's
 /// persistent loop takes every ray), with the scene constants the device upload computes.
 KernelRun run_kernel(const std::vector<CwbvhNode>& nodes, const Fixture& f, TriangleTest test, HitMode mode,
-                     bool count, unsigned warps = 1, bool defer = true, int postpone = kPostponePercent) {
+                     bool count, unsigned warps = 1, bool defer = true, int postpone = kPostponePercent,
+                     bool fast_node_test = true) {
     KernelRun r;
     gpu::LaunchParams p = launch_params(f, r);
     p.postpone_percent = uint32_t(postpone);
     p.nodes = nodes.data();
     p.node_count = uint32_t(nodes.size());
-    p.node_scale = node_scale(nodes.data(), nodes.size());
+    // trace(): TraceOptions::fast_node_test = false passes NodeScale{} (usable 0).
+    p.node_scale = fast_node_test ? node_scale(nodes.data(), nodes.size()) : NodeScale{};
     const unsigned threads = warps * unsigned(gpu::kWarpSize);
     if (test == TriangleTest::kWatertight) {
         if (mode == HitMode::kClosest)
@@ -107,8 +109,10 @@ KernelRun run_kernel(const std::vector<CwbvhNode>& nodes, const Fixture& f, Tria
 
 /// The warp model with one warp: the emulated one-warp kernel's schedule.
 WarpModelStats run_model(const std::vector<CwbvhNode>& nodes, const Fixture& f, TriangleTest test, HitMode mode,
-                         std::vector<Hit>& hits, bool defer = true, int postpone = kPostponePercent) {
+                         std::vector<Hit>& hits, bool defer = true, int postpone = kPostponePercent,
+                         bool fast_node_test = true) {
     WarpModelOptions o;
+    o.fast_node_test = fast_node_test;
     o.mode = mode;
     o.test = test;
     o.warps = 1;
@@ -292,6 +296,27 @@ TEST(KernelEmulation, PostponingThresholdFromTheLaunchAsTheWarpModel) {
             EXPECT_EQ(s.postponed, 0u);
         }
     }
+}
+
+/// TraceOptions::fast_node_test = false (trace() launches with NodeScale{}): no ray takes the
+/// fast node test, and the kernel schedules as the warp model without it, bit for bit, node
+/// and triangle counts included; with the scene's constants the model takes it on every ray
+/// of the fixture, so the switch changes the path.
+TEST(KernelEmulation, ReferenceNodeTestForEveryRayAsTheWarpModelWithout) {
+    const Fixture& f = fixture();
+    std::vector<Hit> fast_hits;
+    const WarpModelStats fast = run_model(f.scene.nodes, f, TriangleTest::kWatertight, HitMode::kClosest, fast_hits);
+    EXPECT_GT(fast.lane_fast_node_steps, fast.lane_node_steps / 2);
+    std::vector<Hit> model_hits;
+    const WarpModelStats s = run_model(f.scene.nodes, f, TriangleTest::kWatertight, HitMode::kClosest, model_hits,
+                                       true, kPostponePercent, false);
+    EXPECT_EQ(s.lane_fast_node_steps, 0u);
+    const KernelRun k = run_kernel(f.scene.nodes, f, TriangleTest::kWatertight, HitMode::kClosest, true, 1, true,
+                                   kPostponePercent, false);
+    expect_bitwise_equal(k.hits, model_hits);
+    EXPECT_EQ(k.work.nodes, s.lane_node_steps);
+    EXPECT_EQ(k.work.triangles, s.lane_tri_tests);
+    expect_same_hits(k.hits, reference(f, HitMode::kClosest, TriangleTest::kWatertight), HitMode::kClosest);
 }
 
 template <TriangleTest kTest, HitMode kMode>

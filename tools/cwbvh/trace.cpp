@@ -145,6 +145,8 @@ int run_trace(int argc, char** argv) {
     if (ab && (!gpu || req.bvh2 || two_level))
         return error(kExitUsage, "trace: --no-defer-hits, --reference-node-test and --postpone-percent change the "
                                  "CWBVH kernel of a single-level file: they need --gpu, without --bvh2");
+    if (!req.ab.defer_hits && req.fast)
+        return error(kExitUsage, "trace: --no-defer-hits with --fast: the fast triangle test never defers hits");
     if (two_level && req.bvh2)
         return error(kExitBadInput, (std::string(path) + ": a two-level scene: --bvh2 traces single-level files only "
                                                          "(compile with cwbvhc --flatten)")
