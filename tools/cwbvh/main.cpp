@@ -61,7 +61,8 @@ constexpr Verb kVerbs[] = {
     {"model", run_model,
      "model FILE --rays RAYS [--bvh2|--bvh2-2009] [--any] [--fast] [--warps N] [--no-postpone] "
      "[--postpone-percent P] [--postpone-with-node-work] [--no-dynamic-fetch] [--nd N --nw N] "
-     "[--shared-entries N] [--node-instructions N] [--tri-instructions N] [--check]",
+     "[--shared-entries N] [--node-instructions N] [--tri-instructions N] [--no-defer-hits] [--reference-node-test] "
+     "[--check]",
      "  runs the GPU kernels' lock-step warp model on the CPU (warp_model.h): active lanes per node step\n"
      "  and triangle round, steps per ray, spills and refills; not a timing\n"
      "  --bvh2 | --bvh2-2009        the BVH2 kernel's model (2012 dynamic fetch, or 2009 persistent)\n"
@@ -71,6 +72,8 @@ constexpr Verb kVerbs[] = {
      "  --no-dynamic-fetch, --nd N --nw N   dynamic ray fetch and its thresholds\n"
      "  --shared-entries N          stack entries in shared memory before spilling\n"
      "  --node-instructions N, --tri-instructions N   weights of the instruction estimate\n"
+     "  --no-defer-hits             the watertight kernel without deferred hit distances (TraceOptions::defer_hits)\n"
+     "  --reference-node-test       the reference node test for every ray (TraceOptions::fast_node_test = false)\n"
      "  --check                     also trace with the CPU reference and count disagreements\n"},
     {"render", run_render,
      "render FILE -o IMAGE.png [--heatmap] [--width W --height H] [--view NAME|N] [--views CATALOG] "

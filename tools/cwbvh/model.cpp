@@ -1,6 +1,7 @@
 // cwbvh model FILE --rays RAYS [--bvh2|--bvh2-2009] [--any] [--fast] [--warps N] [--no-postpone]
 //                  [--postpone-percent P] [--postpone-with-node-work] [--no-dynamic-fetch] [--nd N] [--nw N]
-//                  [--shared-entries N] [--node-instructions N] [--tri-instructions N] [--no-defer-hits] [--check]
+//                  [--shared-entries N] [--node-instructions N] [--tri-instructions N] [--no-defer-hits]
+//                  [--reference-node-test] [--check]
 // Runs the CPU lock-step warp model of the GPU kernels (warp_model.h) over a ray
 // file and prints SIMT efficiency figures: active lanes per node step and per
 // triangle round, steps per ray, the node/triangle phase mix, spills, refills.
@@ -35,7 +36,8 @@ int run_model(int argc, char** argv) {
     const char* usage =
         "usage: cwbvh model FILE --rays RAYS [--bvh2|--bvh2-2009] [--any] [--fast] [--warps N] [--no-postpone] "
         "[--postpone-percent P] [--postpone-with-node-work] [--no-dynamic-fetch] [--nd N] [--nw N] [--shared-entries "
-        "N] [--node-instructions N] [--tri-instructions N] [--no-defer-hits] [--check]";
+        "N] [--node-instructions N] [--tri-instructions N] [--no-defer-hits] "
+        "[--reference-node-test] [--check]";
     const char* path = nullptr;
     const char* rays_path = nullptr;
     bool bvh2 = false, check = false;
@@ -65,6 +67,8 @@ int run_model(int argc, char** argv) {
             o.dynamic_fetch = false;
         } else if (a == "--no-defer-hits") {
             o.defer_hits = false;
+        } else if (a == "--reference-node-test") {
+            o.fast_node_test = false;
         } else if (a == "--warps") {
             if (!num(1, 1u << 20)) return error(kExitUsage, "model: --warps needs an integer in [1, 1048576]");
             o.warps = v;
