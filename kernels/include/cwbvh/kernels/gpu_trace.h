@@ -26,7 +26,8 @@ struct GpuTraceOptions {
     int repeat = 1;                            ///< timed kernel runs, after one untimed warm-up run
     int device = -1;                           ///< CUDA device; -1: current (0)
     /// The CWBVH kernel of a single-level file (trace.h's TraceOptions, for A/B runs; the
-    /// same hits): deferred hit distances, the fast node test, the postponing threshold.
+    /// same hits up to ties at equal t): deferred hit distances, the fast node test, the
+    /// postponing threshold.
     bool defer_hits = true;
     bool fast_node_test = true;
     uint32_t postpone_percent = 20;
