@@ -88,7 +88,7 @@ Expected<GpuTraceResult> trace_on_gpu(const File& file, const Ray* rays, Hit* hi
     GpuTraceResult r;
     r.rays = n;
     if (options.postpone_percent > 100)
-        return Result::fail(Status::kInvalidArgument, 0, "GpuTraceOptions::postpone_percent above 100");
+        return Result::fail(Status::kInvalidArgument, 0, "CwbvhKernelOptions::postpone_percent above 100");
     std::string why;
     if (!gpu_available(why)) return Result::fail(Status::kDeviceError, 0, why);
     try {
@@ -128,9 +128,7 @@ Expected<GpuTraceResult> trace_on_gpu(const File& file, const Ray* rays, Hit* hi
         const Query q = options.any ? Query::kAny : Query::kClosest;
         TraceOptions to;
         to.test = options.test;
-        to.defer_hits = options.defer_hits;
-        to.fast_node_test = options.fast_node_test;
-        to.postpone_percent = options.postpone_percent;
+        static_cast<CwbvhKernelOptions&>(to) = options;
         DeviceTraceStats stats;
         std::vector<double> times;
         const int repeat = std::max(1, options.repeat);

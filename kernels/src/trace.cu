@@ -7,16 +7,12 @@
 
 #include "cwbvh/kernels/cuda_check.h"
 #include "cwbvh/kernels/gpu_common.h"
-#include "cwbvh/kernels/gpu_trace.h"
 #include "cwbvh/kernels/trace.h"
 #include "batched_launch.h"
 #include "kernel_table.h"
 
 namespace cwbvh {
 namespace {
-
-static_assert(TraceOptions{}.postpone_percent == uint32_t(kPostponePercent), "trace.h's default is the kernel's");
-static_assert(GpuTraceOptions{}.postpone_percent == uint32_t(kPostponePercent), "gpu_trace.h's default is the kernel's");
 
 using gpu::KernelEntry;
 
@@ -67,7 +63,7 @@ void launch(int structure, const DeviceScene& scene, const Ray* d_rays, Hit* d_h
     if (n != 0 && (d_rays == nullptr || d_hits == nullptr))
         throw std::invalid_argument("cwbvh::trace: null ray or hit pointer");
     if (options.postpone_percent > 100)
-        throw std::invalid_argument("cwbvh::trace: TraceOptions::postpone_percent above 100");
+        throw std::invalid_argument("cwbvh::trace: CwbvhKernelOptions::postpone_percent above 100");
     const int k = structure == 0 && options.test == TriangleTest::kWatertight && !options.defer_hits
                       ? kWholeTestBase + (query == Query::kAny ? 1 : 0)
                       : structure * gpu::kKernelsPerStructure +

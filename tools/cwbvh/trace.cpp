@@ -29,7 +29,7 @@ namespace {
 struct TraceRequest {
     bool any = false;
     bool fast = false;
-    GpuTraceOptions ab;  ///< the CWBVH kernel's A/B options (--gpu; defer_hits, fast_node_test, postpone_percent)
+    CwbvhKernelOptions ab;  ///< the CWBVH kernel's A/B options (--gpu only)
     bool bvh2 = false;
     unsigned threads = 0;
 };
@@ -39,7 +39,8 @@ struct TraceRequest {
 /// kernel time, so Mrays/s is the kernel's rate, excluding transfers).
 bool trace_gpu(const File& file, const std::vector<Ray>& rays, std::vector<Hit>& hits,
                std::vector<uint32_t>& instances, const TraceRequest& r, CpuTraceStats& stats, std::string& err) {
-    GpuTraceOptions o = r.ab;
+    GpuTraceOptions o;
+    static_cast<CwbvhKernelOptions&>(o) = r.ab;
     o.any = r.any;
     o.kernel = r.bvh2 ? GpuKernel::kBvh2 : GpuKernel::kCwbvh;
     o.test = r.fast ? TriangleTest::kFast : TriangleTest::kWatertight;

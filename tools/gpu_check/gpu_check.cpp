@@ -174,8 +174,6 @@ struct DevBuf {
     DevBuf& operator=(const DevBuf&) = delete;
 };
 
-static_assert(TraceOptions{}.postpone_percent == kDefaultPostponePercent, "summary.h's default is trace.h's");
-
 /// kCwbvhNoDefer, kCwbvhRefNode: the CWBVH kernel with TraceOptions::defer_hits = false, or
 /// with fast_node_test = false.
 enum class Kernel { kCwbvh, kBvh2, kTwoLevel, kCwbvhNoDefer, kCwbvhRefNode };
@@ -1039,20 +1037,20 @@ int main(int argc, char** argv) {
                             };
                             // The CWBVH kernel, BVH2, and the CWBVH kernel's A/Bs: without deferred
                             // hits, with the reference node test.
-                            for (const int k : {kCw, kB2, kNd, kRn}) {
-                                const bool bvh2 = k == kB2;
-                                if (bvh2 && !ds->has_bvh2()) continue;
-                                const char* kname = bvh2        ? "bvh2"
-                                                    : k == kNd  ? "cwbvh_nodefer"
-                                                    : k == kRn  ? "cwbvh_refnode"
-                                                                : "cwbvh";
-                                const Kernel which = bvh2       ? Kernel::kBvh2
-                                                     : k == kNd ? Kernel::kCwbvhNoDefer
-                                                     : k == kRn ? Kernel::kCwbvhRefNode
-                                                                : Kernel::kCwbvh;
+                            struct Timed {
+                                int slot;  // Row::k
+                                Kernel kernel;
+                                const char* name;
+                            };
+                            static constexpr Timed kTimed[] = {{kCw, Kernel::kCwbvh, "cwbvh"},
+                                                               {kB2, Kernel::kBvh2, "bvh2"},
+                                                               {kNd, Kernel::kCwbvhNoDefer, "cwbvh_nodefer"},
+                                                               {kRn, Kernel::kCwbvhRefNode, "cwbvh_refnode"}};
+                            for (const Timed& t : kTimed) {
+                                if (t.kernel == Kernel::kBvh2 && !ds->has_bvh2()) continue;
                                 std::vector<Hit> hits;
-                                r.k[k] = run_checked(which, kname, kDefaultPostponePercent, hits);
-                                if (k == kCw) cw_hits = std::move(hits);
+                                r.k[t.slot] = run_checked(t.kernel, t.name, kDefaultPostponePercent, hits);
+                                if (t.slot == kCw) cw_hits = std::move(hits);
                             }
                             // --postpone-sweep: the CWBVH kernel at other thresholds, closest hit.
                             for (const uint32_t pc : any ? std::vector<uint32_t>{} : postpone_sweep) {

@@ -24,6 +24,7 @@
 #include <utility>
 #include <vector>
 
+#include "cwbvh/kernels/kernel_options.h"
 #include "hit_compare.h"
 
 namespace cwbvh::gpu_check {
@@ -36,9 +37,8 @@ constexpr int kKernels = 5;  ///< CWBVH, BVH2, OptiX, and the CWBVH kernel witho
 /// kNd without deferred hit distances (TraceOptions::defer_hits = false), kRn with the
 /// reference node test for every ray (TraceOptions::fast_node_test = false).
 constexpr int kCw = 0, kB2 = 1, kOx = 2, kNd = 3, kRn = 4;
-/// TraceOptions::postpone_percent's default (gpu_check.cpp checks that they agree; this
-/// header stays free of CUDA).
-constexpr uint32_t kDefaultPostponePercent = 20;
+/// The CWBVH kernel's default postponing threshold (kernel_options.h, free of CUDA).
+constexpr uint32_t kDefaultPostponePercent = CwbvhKernelOptions{}.postpone_percent;
 
 /// One kernel's result on one ray set and query.
 struct KernelResult {

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "cwbvh/format/status.h"
+#include "cwbvh/kernels/kernel_options.h"
 #include "cwbvh/kernels/ray.h"
 #include "cwbvh/kernels/triangle_intersect.h"
 
@@ -19,18 +20,13 @@ class File;
 
 enum class GpuKernel : uint32_t { kCwbvh = 0, kBvh2 = 1 };
 
-struct GpuTraceOptions {
+/// CwbvhKernelOptions (kernel_options.h): the CWBVH kernel's A/B options, for a single-level file.
+struct GpuTraceOptions : CwbvhKernelOptions {
     bool any = false;                          ///< any-hit (occlusion) instead of closest hit
     GpuKernel kernel = GpuKernel::kCwbvh;
     TriangleTest test = TriangleTest::kWatertight;
     int repeat = 1;                            ///< timed kernel runs, after one untimed warm-up run
     int device = -1;                           ///< CUDA device; -1: current (0)
-    /// The CWBVH kernel of a single-level file (trace.h's TraceOptions, for A/B runs; the
-    /// same hits up to ties at equal t): deferred hit distances, the fast node test, the
-    /// postponing threshold.
-    bool defer_hits = true;
-    bool fast_node_test = true;
-    uint32_t postpone_percent = 20;
 };
 
 /// What a successful trace_on_gpu measured.

@@ -21,6 +21,7 @@
 #include <cstdint>
 
 #include "cwbvh/kernels/device_scene.h"
+#include "cwbvh/kernels/kernel_options.h"
 #include "cwbvh/kernels/ray.h"
 #include "cwbvh/kernels/traverse.h"
 #include "cwbvh/kernels/triangle_intersect.h"
@@ -41,7 +42,9 @@ struct DeviceTraceStats {
     uint32_t threads_per_block = 0;
 };
 
-struct TraceOptions {
+/// The CWBVH kernel's A/B options (defer_hits, fast_node_test, postpone_percent) come from
+/// CwbvhKernelOptions (kernel_options.h); they apply to trace() only.
+struct TraceOptions : CwbvhKernelOptions {
     TriangleTest test = TriangleTest::kWatertight;
     /// Optional device array of n statuses (TraceStatus per ray).
     TraceStatus* d_status = nullptr;
@@ -54,28 +57,6 @@ struct TraceOptions {
     /// synchronises `stream` and writes the elapsed milliseconds. Benchmarks use this:
     /// events around the whole call pull every ratio toward 1 on short launches.
     float* kernel_ms = nullptr;
-    /// trace() with the watertight test, closest and any hit: on sm_80 and newer, a hit that
-    /// float arithmetic proves the closest so far is taken on rigorous bounds of its distance,
-    /// and its double-precision t, u, v are computed when the ray ends (deferred hit
-    /// distances). false: the kernel that computes them at every such triangle. The same hits
-    /// either way, up to ties at equal t (which another culling order may resolve to another
-    /// triangle, as any two schedules may); false is there to measure the difference
-    /// (cwbvh_gpu_check times both). No effect on the fast test, trace_bvh2, trace_two_level
-    /// or GPUs before sm_80 (which never defer).
-    bool defer_hits = true;
-    /// trace(): the fast node test (node_intersect_fast.h: two child slots per instruction in
-    /// half precision) for every ray it accepts on sm_80 and newer. false: the reference node
-    /// arithmetic (node_intersect.h) for every ray, the same hits (ties at equal t aside); to
-    /// measure the difference (cwbvh_gpu_check times both). No effect on trace_bvh2,
-    /// trace_two_level or GPUs before sm_80 (which never take the fast test).
-    bool fast_node_test = true;
-    /// trace(): triangle postponing (Ylitie et al. 4.2): a lane pushes its triangles back
-    /// when fewer than this percentage of the warp's active lanes want to test triangles in
-    /// a round. 0 never postpones; at most 100. The default is the paper's 20 (kPostponePercent
-    /// in gpu_stack.h; on 2026-11-25's H100 35 was slower on every ray set and 10 on diffuse
-    /// rays, bench/results/gpu/2026-11-25-h100/policy-sweep.md). Any value gives the same
-    /// hits (ties at equal t aside); it is there to measure (cwbvh_gpu_check --postpone-sweep).
-    uint32_t postpone_percent = 20;
 };
 
 /// CWBVH kernel. d_rays, d_hits: n records each, on scene.device(). A two-level
