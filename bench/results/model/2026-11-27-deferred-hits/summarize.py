@@ -2,22 +2,14 @@
 """Table of run.sh's output: per ray set, the warp rounds that run the watertight test's
 double-precision path per ray without and with deferred hits, the refills that finish
 deferred hits, and what deferral costs in node and triangle visits."""
-import re
+import os
 import sys
 
-rows = {}
-order = []
-for line in open(sys.argv[1]):
-    m = re.match(r"(\S+) (\S+) (\S+) (\S+) :: (.*)", line)
-    if not m:
-        continue
-    key = m.group(1, 2, 3)
-    if key not in rows:
-        rows[key] = {}
-        order.append(key)
-    t = m.group(5)
-    g = lambda pat: float(re.search(pat, t).group(1))
-    rows[key][m.group(4)] = {
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "../../../.."))
+from bench.model_catalog_sets import read_runs  # noqa: E402
+
+def parse(g, t):
+    return {
         "rays": int(g(r"rays (\d+)")),
         "nodes": g(r"nodes/ray ([\d.]+)"),
         "tris": g(r"triangles/ray ([\d.]+)"),
@@ -28,6 +20,9 @@ for line in open(sys.argv[1]):
         "bad": int(g(r"check +(\d+) disagreements")),
         "ties": int(g(r"(\d+) ties")),
     }
+
+
+order, rows = read_runs(sys.argv[1], parse)
 print("| scene | view | rays | double-path rounds per ray (share of rounds): kernel before -> deferred | + refills finishing deferred hits per ray | deferred hits per ray | triangle tests per ray | node visits per ray | disagreements with the CPU reference (ties) |")
 print("|---|---|---|---|---|---|---|---|---|")
 sums = []

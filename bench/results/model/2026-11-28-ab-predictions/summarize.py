@@ -3,22 +3,16 @@
 the kernel as it is, and each A/B variant's warp steps relative to it; then geometric means
 over the ray sets, primary and diffuse separately."""
 import math
-import re
+import os
 import sys
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "../../../.."))
+from bench.model_catalog_sets import read_runs  # noqa: E402
 
 VARIANTS = ["--no-defer-hits", "--reference-node-test", "--postpone-percent=10", "--postpone-percent=35",
             "--postpone-percent=50"]
-rows, order = {}, []
-for line in open(sys.argv[1]):
-    m = re.match(r"(\S+) (\S+) (\S+) (\S+) :: (.*)", line)
-    if not m:
-        continue
-    key, t = m.group(1, 2, 3), m.group(5)
-    g = lambda pat: float(re.search(pat, t).group(1))
-    if key not in rows:
-        rows[key] = {}
-        order.append(key)
-    rows[key][m.group(4)] = {
+def parse(g, text):
+    return {
         "rays": int(g(r"rays (\d+)")),
         "nodes": g(r"nodes/ray ([\d.]+)"),
         "tris": g(r"triangles/ray ([\d.]+)"),
@@ -27,6 +21,9 @@ for line in open(sys.argv[1]):
         "lanes_tri": g(r"lanes/tri step ([\d.]+)"),
         "double": g(r"in \d+ rounds \(([\d.]+) per ray"),
     }
+
+
+order, rows = read_runs(sys.argv[1], parse)
 
 
 def gm(v):
