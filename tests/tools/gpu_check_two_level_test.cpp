@@ -1,8 +1,9 @@
 // cwbvh_gpu_check's two-level path (tools/gpu_check), as far as it runs without a GPU:
 //  - hit_compare.h's compare_with_flattened (the two-level file's hits against the
 //    flattened file's: hit/miss, 1e-5 relative t, PMAP source or tie; edge cases and
-//    diffuse rounding counted apart) and compare_bitwise (the two-level kernel against
-//    trace_two_level_cpu), each rounding decision with its bad case;
+//    diffuse rounding counted apart) and compare_query (the two-level kernel and the inline
+//    query against their CPU references: closest hit bit for bit up to equal-t ties and
+//    4 ulps, any hit by hit/miss and no nearer than the closest), each with its bad case;
 //  - the tool itself with --cpu-only on dense_dragons compiled both ways by cwbvhc
 //    (ray generation, trace_two_level_cpu, the comparison, the two-level table and CSV,
 //    the scene table's instanced columns), a flattened file of another scene under the
@@ -147,30 +148,77 @@ TEST(GpuCheckTwoLevel, SumsKeepTheFirstDisagreementsRayIndex) {
     EXPECT_EQ(total.disagreeing, 2u);
 }
 
-TEST(GpuCheckTwoLevel, BitwiseAgainstTheCpuReference) {
+TEST(GpuCheckTwoLevel, QueriesAgainstTheCpuReference) {
     const std::vector<Hit> ref = {hit(1.0f, 1), miss(), hit(2.0f, 3)};
     const std::vector<uint32_t> ri = {4, kInvalidIndex, 9};
-    int64_t first = 0;
-    uint64_t near = 7;
-    EXPECT_EQ(compare_bitwise(ref, ri, ref, ri, &first, &near), 0u);
-    EXPECT_EQ(first, -1);
-    EXPECT_EQ(near, 0u);
-    // One ulp of t: a mismatch (bit for bit), within the ulp bound.
+    QueryCompare c = compare_query(ref, ri, ref, ri, false, ref);
+    EXPECT_EQ(c.mismatches, 0u);
+    EXPECT_EQ(c.not_bitwise, 0u);
+    EXPECT_EQ(c.first_bad, -1);
+    // One ulp of t on the same triangle: not bit for bit, accepted (the double path).
     std::vector<Hit> h = ref;
     h[2].t = std::nextafter(2.0f, 3.0f);
-    EXPECT_EQ(compare_bitwise(h, ri, ref, ri, &first, &near), 1u);
-    EXPECT_EQ(first, 2);
-    EXPECT_EQ(near, 1u);
-    // Another instance of the same prim at the same t: a mismatch, not "near".
+    c = compare_query(h, ri, ref, ri, false, ref);
+    EXPECT_EQ(c.mismatches, 0u);
+    EXPECT_EQ(c.not_bitwise, 1u);
+    EXPECT_EQ(c.near, 1u);
+    // Five ulps: a mismatch.
+    h[2].t = 2.0f;
+    for (int i = 0; i < 5; ++i) h[2].t = std::nextafter(h[2].t, 3.0f);
+    c = compare_query(h, ri, ref, ri, false, ref);
+    EXPECT_EQ(c.mismatches, 1u);
+    EXPECT_EQ(c.first_bad, 2);
+    // Another instance of the same prim at the same t: an equal-t tie (which of two
+    // triangles at one distance wins depends on the order they are tested in).
     std::vector<uint32_t> hi = ri;
     hi[0] = 5;
-    EXPECT_EQ(compare_bitwise(ref, hi, ref, ri, &first, &near), 1u);
-    EXPECT_EQ(first, 0);
-    EXPECT_EQ(near, 0u);
-    // u differs by one ulp: a mismatch (every byte counts).
+    c = compare_query(ref, hi, ref, ri, false, ref);
+    EXPECT_EQ(c.mismatches, 0u);
+    EXPECT_EQ(c.ties, 1u);
+    // Another prim at the same t: a tie too.
     h = ref;
-    h[0].u = std::nextafter(h[0].u, 1.0f);
-    EXPECT_EQ(compare_bitwise(h, ri, ref, ri, nullptr, nullptr), 1u);
+    h[0].prim = 2;
+    h[0].u = 0.5f;
+    c = compare_query(h, ri, ref, ri, false, ref);
+    EXPECT_EQ(c.ties, 1u);
+    EXPECT_EQ(c.mismatches, 0u);
+    // Hit against miss: a mismatch, either way.
+    h = ref;
+    h[1] = hit(3.0f, 7);
+    c = compare_query(h, ri, ref, ri, false, ref);
+    EXPECT_EQ(c.mismatches, 1u);
+    h = ref;
+    h[0] = miss();
+    c = compare_query(h, ri, ref, ri, true, ref);
+    EXPECT_EQ(c.mismatches, 1u);
+    // A miss record whose bits differ (u of a miss): a mismatch.
+    h = ref;
+    h[1].u = 0.25f;
+    c = compare_query(h, ri, ref, ri, false, ref);
+    EXPECT_EQ(c.mismatches, 1u);
+    EXPECT_EQ(c.first_bad, 1);
+}
+
+TEST(GpuCheckTwoLevel, AnyHitAcceptsAnotherHitNoNearerThanTheClosest) {
+    const std::vector<Hit> closest = {hit(1.0f, 1), hit(2.0f, 3)};
+    const std::vector<Hit> ref_any = {hit(4.0f, 2), hit(2.0f, 3)};
+    const std::vector<uint32_t> ri = {0, 0};
+    // The kernel found other hits than the reference's any-hit ones, both no nearer than
+    // the closest hit: accepted.
+    std::vector<Hit> h = {hit(1.0f, 1), hit(5.0f, 6)};
+    QueryCompare c = compare_query(h, ri, ref_any, ri, true, closest);
+    EXPECT_EQ(c.mismatches, 0u);
+    EXPECT_EQ(c.not_bitwise, 2u);
+    EXPECT_EQ(c.ties, 0u);
+    // A hit nearer than the closest one cannot be a hit: a mismatch.
+    h[1] = hit(1.5f, 6);
+    c = compare_query(h, ri, ref_any, ri, true, closest);
+    EXPECT_EQ(c.mismatches, 1u);
+    EXPECT_EQ(c.first_bad, 1);
+    // ... unless within the ulp bound of it.
+    h[1] = hit(std::nextafter(2.0f, 0.0f), 6);
+    c = compare_query(h, ri, ref_any, ri, true, closest);
+    EXPECT_EQ(c.mismatches, 0u);
 }
 
 // ---- the tool, --cpu-only ------------------------------------------------

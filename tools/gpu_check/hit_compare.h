@@ -184,26 +184,58 @@ FlatCompare compare_with_flattened(const std::vector<Hit>& two, const std::vecto
     return c;
 }
 
-/// The two-level kernel against trace_two_level_cpu: bit for bit (the Hit record's
-/// bytes and the instance). Returns the mismatching rays; *first_bad the first
-/// (-1 if none), *within_ulps how many of them still lie within kKernelUlpBound with
-/// the same prim and instance (to tell rounding from a traversal bug in a report).
-inline uint64_t compare_bitwise(const std::vector<Hit>& hits, const std::vector<uint32_t>& inst,
-                                const std::vector<Hit>& ref, const std::vector<uint32_t>& ref_inst,
-                                int64_t* first_bad, uint64_t* within_ulps) {
-    uint64_t bad = 0, near = 0;
-    int64_t first = -1;
+/// The inline query and the two-level kernel against their CPU references
+/// (trace_cwbvh_cpu, trace_two_level_cpu) on the same rays. `inst`/`ref_inst`: instances
+/// (kInvalidIndex throughout for a single-level scene).
+///  - Closest hit: the same Hit record and instance bit for bit; else, both hitting,
+///    another (prim, instance) at t within kKernelUlpBound is a tie (counted, accepted:
+///    the fast node test is conservative, so a kernel may test extra leaves and the
+///    closed interval keeps whichever of two triangles at one distance came last), and
+///    the same (prim, instance) at t within the bound is "near" (accepted, the double
+///    path's FMA contraction, as compare_hits); anything else is a mismatch.
+///  - Any hit: which hit a query reports depends on its traversal order, so the
+///    reference's any-hit record is not the answer: hit/miss must agree with `ref`, and
+///    a hit may not lie nearer than the closest hit `closest` (by more than the bound):
+///    such a hit would be no hit at all.
+struct QueryCompare {
+    uint64_t mismatches = 0;   ///< a failure
+    uint64_t not_bitwise = 0;  ///< rays whose record or instance differs from the reference's in any bit
+    uint64_t ties = 0;         ///< closest hit: another triangle at the same t (accepted)
+    uint64_t near = 0;         ///< closest hit: the same triangle, t within kKernelUlpBound (accepted)
+    int64_t first_bad = -1;    ///< first mismatching ray, -1 if none
+};
+
+inline void add(QueryCompare& total, const QueryCompare& c) {
+    total.mismatches += c.mismatches;
+    total.not_bitwise += c.not_bitwise;
+    total.ties += c.ties;
+    total.near += c.near;
+}
+
+inline QueryCompare compare_query(const std::vector<Hit>& hits, const std::vector<uint32_t>& inst,
+                                  const std::vector<Hit>& ref, const std::vector<uint32_t>& ref_inst, bool any,
+                                  const std::vector<Hit>& closest) {
+    QueryCompare c;
     for (size_t i = 0; i < ref.size(); ++i) {
         if (std::memcmp(&hits[i], &ref[i], sizeof(Hit)) == 0 && inst[i] == ref_inst[i]) continue;
-        ++bad;
-        if (first < 0) first = int64_t(i);
-        if (hits[i].prim == ref[i].prim && inst[i] == ref_inst[i] &&
-            ulp_distance(hits[i].t, ref[i].t) <= kKernelUlpBound)
-            ++near;
+        ++c.not_bitwise;
+        const bool gh = hits[i].prim != kMissPrim, ch = ref[i].prim != kMissPrim;
+        bool bad = gh != ch;
+        if (!bad && gh && any) {
+            bad = hits[i].t < closest[i].t && ulp_distance(hits[i].t, closest[i].t) > kKernelUlpBound;
+        } else if (!bad && gh) {
+            if (ulp_distance(hits[i].t, ref[i].t) > kKernelUlpBound) bad = true;
+            else if (hits[i].prim == ref[i].prim && inst[i] == ref_inst[i]) ++c.near;
+            else ++c.ties;
+        } else if (!bad) {
+            bad = true;  // both miss, yet not bit for bit: a miss record's t, u or v is off
+        }
+        if (bad) {
+            if (c.first_bad < 0) c.first_bad = int64_t(i);
+            ++c.mismatches;
+        }
     }
-    if (first_bad) *first_bad = first;
-    if (within_ulps) *within_ulps = near;
-    return bad;
+    return c;
 }
 
 }  // namespace cwbvh

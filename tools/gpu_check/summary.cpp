@@ -41,6 +41,17 @@ std::string describe(const FlatCompare& c, bool any) {
     return b;
 }
 
+std::string describe(const QueryCompare& c) {
+    char b[320];
+    std::snprintf(b, sizeof b,
+                  "%llu mismatches (a failure); %llu rays not bit for bit: %llu equal-t ties and %llu same triangle "
+                  "within %u ulps (closest hit), %llu other valid any-hit records",
+                  (unsigned long long)c.mismatches, (unsigned long long)c.not_bitwise, (unsigned long long)c.ties,
+                  (unsigned long long)c.near, kKernelUlpBound,
+                  (unsigned long long)(c.not_bitwise - c.mismatches - c.ties - c.near));
+    return b;
+}
+
 namespace {
 
 /// Closest-hit rows that pass `keep`, by scene (first-seen order), view and bounce.
@@ -186,15 +197,14 @@ void print_summary(const std::vector<Row>& rows) {
 
 void print_two_level_summary(const std::vector<Row>& rows) {
     FlatCompare flat_all;
-    uint64_t mis = 0, near = 0;
+    QueryCompare cmp;
     bool present = false, gpu = false;
     for (const Row& r : rows) {
         if (!r.tl.present) continue;
         present = true;
         gpu = gpu || r.tl.k.ran;
         flat_all += r.tl.flat;
-        mis += r.tl.k.mismatches;
-        near += r.tl.near;
+        add(cmp, r.tl.cmp);
     }
     if (!present) return;
     if (!gpu) {
@@ -223,18 +233,17 @@ void print_two_level_summary(const std::vector<Row>& rows) {
                 fmt(!per_scene.empty(), "%.2fx", geomean(per_scene)).c_str());
     std::printf("two-level vs flattened hits (GPU kernels), all rays and queries: %s\n",
                 describe(flat_all, false).c_str());
-    std::printf("two-level kernel vs trace_two_level_cpu: %llu rays not bit for bit (%llu of them same prim and "
-                "instance, t within %u ulps)\n",
-                (unsigned long long)mis, (unsigned long long)near, kKernelUlpBound);
+    std::printf("two-level kernel vs trace_two_level_cpu, all rays and queries: %s\n", describe(cmp).c_str());
 }
 
 void print_inline_summary(const std::vector<Row>& rows) {
-    uint64_t mis = 0, not_ok = 0;
+    QueryCompare cmp;
+    uint64_t not_ok = 0;
     bool ran = false;
     for (const Row& r : rows) {
         if (!r.inl.ran) continue;
         ran = true;
-        mis += r.inl.mismatches;
+        add(cmp, r.inl_cmp);
         not_ok += r.inl.overflows;
     }
     if (!ran) return;
@@ -250,9 +259,9 @@ void print_inline_summary(const std::vector<Row>& rows) {
                     mean_cell(m.mean[kInlineCwbvhMrays], "%.1f").c_str(),
                     mean_cell(m.mean[kInlineOverCwbvh], "%.2fx").c_str(), m.left_out);
     }
-    std::printf("inline query vs the CPU reference, all rays and queries: %llu rays not bit for bit, %llu overflows "
-                "or bad indices (each a failure)\n",
-                (unsigned long long)mis, (unsigned long long)not_ok);
+    std::printf("inline query vs the CPU reference, all rays and queries: %s; %llu overflows or bad indices (a "
+                "failure)\n",
+                describe(cmp).c_str(), (unsigned long long)not_ok);
 }
 
 void print_postpone_summary(const std::vector<Row>& rows) {

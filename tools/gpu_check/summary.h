@@ -54,8 +54,8 @@ struct TwoLevelResult {
     bool present = false;  ///< the scene has an instanced file (CPU reference ran)
     uint64_t cpu_hits = 0;
     double cpu_mrays = 0;
-    KernelResult k;  ///< the kernel; k.mismatches: bitwise vs trace_two_level_cpu
-    uint64_t near = 0;  ///< of k.mismatches: same prim and instance, t within kKernelUlpBound
+    KernelResult k;    ///< the kernel; k.mismatches: cmp.mismatches
+    QueryCompare cmp;  ///< against trace_two_level_cpu (hit_compare.h, compare_query)
     FlatCompare flat;   ///< against the flattened file's hits (GPU: its CWBVH kernel's)
     bool flat_gpu = false;  ///< flat compared GPU hits (else the CPU references)
 };
@@ -69,7 +69,8 @@ struct Row {
     double cpu_mrays = 0;
     KernelResult k[kKernels];  ///< [kCw] CWBVH, [kB2] BVH2, [kOx] OptiX, [kNd], [kRn] CWBVH A/Bs
     TwoLevelResult tl;         ///< the instanced file (tl.present)
-    KernelResult inl;          ///< the inline query (query.h) on the same file; mismatches: bitwise vs the CPU
+    KernelResult inl;          ///< the inline query (query.h) on the same file; mismatches: inl_cmp.mismatches
+    QueryCompare inl_cmp;      ///< the inline query against the CPU reference (compare_query)
     /// --postpone-sweep: the CWBVH kernel at other postponing thresholds (TraceOptions::
     /// postpone_percent), closest hit only: (percent, result).
     std::vector<std::pair<uint32_t, KernelResult>> postpone;
@@ -98,6 +99,9 @@ const char* kind_name(int set);
 std::string fmt(bool ok, const char* f, double v);
 /// One line of a two-level vs flattened comparison.
 std::string describe(const FlatCompare& c, bool any);
+/// "N mismatches (a failure); M not bit for bit: T equal-t ties, U within 4 ulps, the rest
+/// any-hit records of another order" (compare_query's counts).
+std::string describe(const QueryCompare& c);
 
 /// One figure over the scenes for one ray set.
 struct Mean {

@@ -96,6 +96,22 @@ struct NodeScale {
     uint32_t frame_word;
 };
 
+/// Largest spread of the ray's |rcp| exponents, floor(log2 max|rcp|) - floor(log2 min|rcp|),
+/// for which the fast test is taken (a culling limit, not an accuracy one: beyond it the
+/// test stays conservative but stops culling). The node frame is scaled for the largest
+/// |rcp|, so an axis whose |rcp| is 2^k times smaller has its planes 2^k times closer
+/// together in tau; past about the half's 11 bits they fall within its rounding and every
+/// child passes on that axis. A ray nearly parallel to a coordinate plane (one direction
+/// component 10^-7 of the others: diffuse rays make them) then visits nearly every node
+/// near its path: on 2026-11-28's H200 run, 1,242 nodes for a dragon diffuse ray that the
+/// reference test takes through 10, 4,945 against 17 on dense_dragons, one warp holding
+/// a whole launch (dragon front diffuse 2: 1.64 ms against 0.33 with the reference test;
+/// the DERIVED street view's diffuse 2, 108 ms against 0.75). With spreads <= 11 the fast
+/// test visits at most 11 nodes more than the reference test on any ray of dragon,
+/// dense_dragons and kicad_board's worst sets (bench/results/gpu/2026-11-28-h200), and
+/// 0.1 % of diffuse rays spread more (they take the reference test).
+inline constexpr int kFastMaxRcpSpread = 11;
+
 /// Largest biased exponent the fast test accepts (2^103: far beyond any scene):
 /// 2^24 * 2^(e-127) must be a float, formed as (e + 24) << 23.
 inline constexpr uint32_t kFastMaxExponent = 230;
@@ -135,6 +151,7 @@ CWBVH_HD CWBVH_INLINE int float_exponent(float x) { return int(float_to_bits(x) 
 /// (make_node_ray makes |rcp| >= FLT_MIN or infinite), the node frame's factor normal
 /// for every node (r = floor(log2 max|rcp|); f = 2^(116 - e_max - r) and f 2^-20, with
 /// e_max >= e_floor: r <= 222 - e_max, r >= -11 - e_floor over the scene),
+/// the |rcp| exponents within kFastMaxRcpSpread of each other (culling, see there),
 /// and every slab term bounded, also in the largest node frame:
 ///   (2^16 scale_max + plane_max + 2|o'|max) |rcp|max 2^(116 - e_floor - r) < 2^125
 /// (S <= (1.04 * 2^15 * 2^(e-127) + |p| + 2|o'|)(1 + 3u)|rcp| as in the float form). o':
@@ -143,17 +160,19 @@ CWBVH_HD CWBVH_INLINE int float_exponent(float x) { return int(float_to_bits(x) 
 CWBVH_HD CWBVH_INLINE bool fast_node_test_applies(const NodeScale& sc, const float org_moved[3], const float rcp[3],
                                                   float tmin, int* r_out = nullptr) {
     if (sc.usable == 0 || float_as_int(tmin) < 0 || !(tmin < kInfinity)) return false;
-    float rmax = 0.0f, omax = 0.0f;
+    float rmax = 0.0f, rmin = kInfinity, omax = 0.0f;
     for (int a = 0; a < 3; ++a) {
         const float ar = abs_fm(rcp[a]);
         if (!(ar >= kFloatMin && ar < kInfinity)) return false;  // also NaN
         rmax = ar > rmax ? ar : rmax;
+        rmin = ar < rmin ? ar : rmin;
         const float ao = abs_fm(org_moved[a]);
         if (!(ao < kInfinity)) return false;
         omax = ao > omax ? ao : omax;
     }
     const int r = float_exponent(rmax);
     if (r_out) *r_out = r;
+    if (r - float_exponent(rmin) > kFastMaxRcpSpread) return false;
     const int em = int(sc.e_max), en = int(sc.e_floor);
     if (r > 222 - em || r < -11 - en) return false;
     // Each sum and product below rounds to nearest (relative error <= u); the factor
