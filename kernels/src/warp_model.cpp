@@ -89,6 +89,7 @@ private:
         ModelStack stack;
         float u = 0.0f, v = 0.0f;  ///< of the closest hit so far (the kernel's shared s_uv)
         float tlo = 0.0f;          ///< the lane's tlo (CwbvhLane::hit_deferred; the kernel's s_tlo)
+        uint32_t nodes = 0, tris = 0;  ///< this ray's node visits and triangle tests (WarpModelStats::worst_ray_*)
     };
 
     /// TRIS index -> triangle: whole_test's reader (the kernel's reads the read-only cache).
@@ -128,6 +129,7 @@ private:
             lane.l = CwbvhLane<kTest>(ray, scale_);  // the kernel's node tests, fast path included
             lane.tlo = lane.l.tmax;
             lane.stack.clear();
+            lane.nodes = lane.tris = 0;
             lane.active = true;
             lane_work += o_.refill_instructions;
         }
@@ -163,6 +165,11 @@ private:
             }
             hits_[lane.ray_id] = h;
             s_.hits += h.prim != kMissPrim;
+            if (uint64_t(lane.nodes) + lane.tris > uint64_t(s_.worst_ray_nodes) + s_.worst_ray_tris) {
+                s_.worst_ray_nodes = lane.nodes;
+                s_.worst_ray_tris = lane.tris;
+                s_.worst_ray_id = lane.ray_id;
+            }
             lane.ended = false;
             lane.stack.clear();
         }
@@ -202,6 +209,7 @@ private:
             const NodeStep step = next_node(lane.l, lane.stack, node_count_, index);
             if (step == NodeStep::kVisit) {
                 ++visiting;
+                ++lane.nodes;
                 s_.lane_fast_node_steps += lane.l.nray.uses_fast_test() ? 1u : 0u;
                 visit_node(lane.l, nodes_[index], scale_.frame_word);
             } else if (step == NodeStep::kOverflow) {
@@ -240,6 +248,7 @@ private:
                     continue;
                 }
                 ++testing;
+                ++lane.tris;
                 TriangleHit th;
                 PrevHit prev_state = PrevHit::kNone;
                 TriangleStep step;

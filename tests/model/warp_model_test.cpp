@@ -4,6 +4,7 @@
 // are consistent: a model that drifted from the traversal would be tuning fiction.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdint>
 #include <cstring>
@@ -196,6 +197,15 @@ TEST(WarpModel, StatisticsAreConsistent) {
     EXPECT_EQ(s.lane_node_steps, cs.nodes_visited);
     EXPECT_EQ(s.lane_tri_tests, cs.triangles_tested);
     EXPECT_EQ(s.hits, cs.hits);
+    // The worst ray (the most node visits plus triangle tests): the reference's per-ray
+    // counters name the same work, and the model's id points at a ray that did it.
+    uint64_t worst = 0;
+    for (const TraceCounters& c : counters) worst = std::max<uint64_t>(worst, uint64_t(c.nodes) + c.triangles);
+    EXPECT_EQ(uint64_t(s.worst_ray_nodes) + s.worst_ray_tris, worst);
+    ASSERT_LT(s.worst_ray_id, f.rays.size());
+    EXPECT_EQ(counters[s.worst_ray_id].nodes, s.worst_ray_nodes);
+    EXPECT_EQ(counters[s.worst_ray_id].triangles, s.worst_ray_tris);
+    EXPECT_GT(double(s.worst_ray_nodes), double(s.lane_node_steps) / double(s.rays));
     uint64_t node_steps = 0, tri_steps = 0, node_lanes = 0, tri_lanes = 0;
     EXPECT_EQ(s.node_lane_hist[0], 0u);
     EXPECT_EQ(s.tri_lane_hist[0], 0u);

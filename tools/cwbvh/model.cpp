@@ -173,6 +173,11 @@ int run_model(int argc, char** argv) {
     }
     std::printf("spilled pushes   %llu (%.4f per ray), deepest stack %llu\n", (unsigned long long)s.spilled_pushes,
                 double(s.spilled_pushes) / n, (unsigned long long)s.max_stack);
+    if (s.worst_ray_nodes + s.worst_ray_tris > 0)  // the CWBVH model keeps it
+        std::printf("worst ray        %llu: %u nodes, %u triangles (the launch lasts as long as its slowest ray; "
+                    "mean %.2f, %.2f)\n",
+                    (unsigned long long)s.worst_ray_id, s.worst_ray_nodes, s.worst_ray_tris,
+                    double(s.lane_node_steps) / n, double(s.lane_tri_tests) / n);
     if (s.stack_overflows || s.bad_indices)
         std::printf("stack overflows  %llu\nbad indices      %llu\n", (unsigned long long)s.stack_overflows,
                     (unsigned long long)s.bad_indices);

@@ -111,6 +111,13 @@ struct WarpModelStats {
     uint64_t postponed = 0;         ///< triangle groups pushed by postponing
     uint64_t spilled_pushes = 0;    ///< pushes at depth >= shared_stack_entries
     uint64_t max_stack = 0;         ///< deepest stack seen
+    /// The ray with the most node visits plus triangle tests (CWBVH model): a launch lasts as
+    /// long as its slowest warp, and one ray's steps are serial, so a single ray of thousands
+    /// of nodes sets the kernel time while the means above barely move (the 2026-11-28 H200
+    /// run: 1,242 nodes for one dragon diffuse ray, 15.4 on average). worst_ray_id: its index
+    /// in the ray array (0 when no ray ran).
+    uint64_t worst_ray_id = 0;
+    uint32_t worst_ray_nodes = 0, worst_ray_tris = 0;
     uint64_t stack_overflows = 0, bad_indices = 0, invalid_rays = 0;
     // The watertight test's double-precision path, and deferred hits (defer_hits:
     // cwbvh_lane.h, test_triangle_deferred):
