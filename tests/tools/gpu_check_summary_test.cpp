@@ -190,6 +190,34 @@ TEST(GpuCheckSummary, TwoLevelAndInlineRatiosAreOverTheFlattenedCwbvhKernel) {
     EXPECT_NEAR(two_level_means(rows, 0).mean[kTwoOverFlat].value, 2.0, 1e-12);
 }
 
+TEST(GpuCheckSummary, TheInlineQueryOnTwoLevelFilesIsOverTheTwoLevelKernel) {
+    std::vector<Row> rows;
+    for (int v = 0; v < 2; ++v) {
+        Row r = row("alpha", v ? "b" : "a", 0, kBig, 2.0);
+        r.tl.present = true;
+        r.tl.k.ran = true;
+        r.tl.k.ms = 4.0;
+        r.tl.inl.ran = true;
+        r.tl.inl.ms = v ? 1.0 : 4.0;  // inline / two-level kernel: 4 and 1 -> 2
+        rows.push_back(r);
+    }
+    Row small = rows[0];  // fewer rays than the means take: left out
+    small.view = "c";
+    small.rays = 1000;
+    small.tl.inl.ms = 400.0;
+    rows.push_back(small);
+    Row any = rows[0];  // any hit: left out
+    any.query = "any";
+    any.tl.inl.ms = 400.0;
+    rows.push_back(any);
+    size_t scenes = 9;
+    EXPECT_NEAR(two_level_inline_ratio(rows, &scenes), 2.0, 1e-12);
+    EXPECT_EQ(scenes, 1u);
+    for (Row& r : rows) r.tl.inl.ran = false;
+    EXPECT_EQ(two_level_inline_ratio(rows, &scenes), 0.0);
+    EXPECT_EQ(scenes, 0u);
+}
+
 TEST(GpuCheckSummary, GeomeanOfNothingIsZero) {
     EXPECT_EQ(geomean({}), 0.0);
     EXPECT_NEAR(geomean({2.0, 8.0}), 4.0, 1e-12);

@@ -222,21 +222,28 @@ double run_kernel(const DeviceScene& ds, Kernel kernel, const Ray* d_rays, Hit* 
 
 /// The inline query (inline_kernel.h) timed as run_kernel times the kernels: one untimed
 /// warm-up, `repeat` timed launches, the hits of the last one; not_ok: the rays of the
-/// last launch whose status is kStackOverflow, kBadIndex or kWrongScene.
+/// last launch whose status is kStackOverflow, kBadIndex or kWrongScene. inst (set for a
+/// two-level view): the hits' instances.
 double run_inline(const SceneView& view, const Ray* d_rays, Hit* d_hits, size_t n, bool any, int repeat,
-                  std::vector<Hit>& hits, uint64_t& not_ok) {
+                  std::vector<Hit>& hits, uint64_t& not_ok, std::vector<uint32_t>* inst = nullptr) {
     DevBuf<unsigned long long> d_not_ok(1);
-    run_inline_query(view, d_rays, d_hits, n, any, d_not_ok.p, nullptr);
+    DevBuf<uint32_t> d_inst(inst ? n : 0);
+    uint32_t* di = inst ? d_inst.p : nullptr;
+    run_inline_query(view, d_rays, d_hits, di, n, any, d_not_ok.p, nullptr);
     CWBVH_CUDA_CHECK(cudaDeviceSynchronize());
     std::vector<float> times;
     for (int i = 0; i < repeat; ++i) {
         CWBVH_CUDA_CHECK(cudaMemset(d_not_ok.p, 0, sizeof(unsigned long long)));
         float ms = 0;
-        run_inline_query(view, d_rays, d_hits, n, any, d_not_ok.p, &ms);
+        run_inline_query(view, d_rays, d_hits, di, n, any, d_not_ok.p, &ms);
         times.push_back(ms);
     }
     hits.resize(n);
     if (n) CWBVH_CUDA_CHECK(cudaMemcpy(hits.data(), d_hits, n * sizeof(Hit), cudaMemcpyDeviceToHost));
+    if (inst) {
+        inst->resize(n);
+        if (n) CWBVH_CUDA_CHECK(cudaMemcpy(inst->data(), di, n * sizeof(uint32_t), cudaMemcpyDeviceToHost));
+    }
     unsigned long long bad = 0;
     CWBVH_CUDA_CHECK(cudaMemcpy(&bad, d_not_ok.p, sizeof bad, cudaMemcpyDeviceToHost));
     not_ok = bad;
@@ -470,7 +477,8 @@ bool write_two_level_csv(const std::string& path, const std::vector<Row>& rows, 
     f << "scene,view,rays,query,width,height,count,device,repeat,cpu_hits_flat,cpu_hits_two_level,two_level_ms,"
          "two_level_mrays,cwbvh_ms,cwbvh_mrays,two_level_over_cwbvh,two_level_nodes_per_ray,two_level_tris_per_ray,"
          "two_level_mismatches,two_level_near,two_level_ties,two_level_not_bitwise,two_level_overflows,flat_compared,flat_disagreeing,flat_hit_vs_miss,"
-         "flat_edge,flat_t,flat_t_rounding,flat_source,flat_ties,flat_worst_rel,in_means\n";
+         "flat_edge,flat_t,flat_t_rounding,flat_source,flat_ties,flat_worst_rel,in_means,inline_ms,inline_mrays,"
+         "inline_mismatches\n";
     const auto& num = csv_num;
     for (const Row& r : rows) {
         if (!r.tl.present) continue;
@@ -486,7 +494,9 @@ bool write_two_level_csv(const std::string& path, const std::vector<Row>& rows, 
           << (t.ran ? std::to_string(r.tl.cmp.not_bitwise) : std::string()) << ','
           << (t.ran ? std::to_string(t.overflows) : std::string()) << ',' << (r.tl.flat_gpu ? "gpu" : "cpu") << ','
           << x.disagreeing << ',' << x.hit_vs_miss << ',' << x.edge << ',' << x.t_far << ',' << x.t_rounding << ','
-          << x.source << ',' << x.ties << ',' << num(true, x.worst_rel) << ',' << (r.in_means() ? 1 : 0) << '\n';
+          << x.source << ',' << x.ties << ',' << num(true, x.worst_rel) << ',' << (r.in_means() ? 1 : 0) << ','
+          << num(r.tl.inl.ran, r.tl.inl.ms) << ',' << num(r.tl.inl.ran, r.tl.inl.mrays) << ','
+          << (r.tl.inl.ran ? std::to_string(r.tl.inl.mismatches) : std::string()) << '\n';
     }
     return bool(f);
 }
@@ -905,12 +915,14 @@ int main(int argc, char** argv) {
                     auto two_level_line = [&](const Row& r) {
                         const bool any = r.query == "any";
                         if (r.tl.k.ran)
-                            std::printf("  2L %-7s %8.1f Mrays/s, flattened CWBVH %8s: %s; %llu not bit for bit; vs "
-                                        "flattened (GPU): %s\n",
+                            std::printf("  2L %-7s %8.1f Mrays/s, flattened CWBVH %8s: %s; %llu mismatches; inline "
+                                        "query %s Mrays/s; vs flattened (GPU): %s\n",
                                         r.query.c_str(), r.tl.k.mrays,
                                         fmt(r.k[kCw].ran, "%.1f", r.k[kCw].mrays).c_str(),
                                         fmt(r.tl_ratio() > 0, "%.2fx", r.tl_ratio()).c_str(),
-                                        (unsigned long long)r.tl.k.mismatches, describe(r.tl.flat, any).c_str());
+                                        (unsigned long long)r.tl.k.mismatches,
+                                        fmt(r.tl.inl.ran, "%.1f", r.tl.inl.mrays).c_str(),
+                                        describe(r.tl.flat, any).c_str());
                         else
                             std::printf("  2L %-7s vs flattened (CPU): %s\n", r.query.c_str(),
                                         describe(r.tl.flat, any).c_str());
@@ -1121,6 +1133,29 @@ int main(int argc, char** argv) {
                                 const std::vector<Hit>& flat_hits = cw_hits.empty() ? (any ? ref_any : ref) : cw_hits;
                                 r.tl.flat = flat_compare(hits, flat_hits, any != 0);
                                 r.tl.flat_gpu = !cw_hits.empty();
+                                {  // the inline query on the instanced file, one thread per ray
+                                    std::vector<Hit> ih;
+                                    std::vector<uint32_t> ii;
+                                    uint64_t not_ok = 0;
+                                    KernelResult& ik = r.tl.inl;
+                                    ik.ms = run_inline(ds2->view(), d_rays.p, d_hits.p, rays.size(), any != 0, repeat,
+                                                       ih, not_ok, &ii);
+                                    ik.ran = true;
+                                    ik.mrays = ik.ms > 0 ? double(rays.size()) / (ik.ms * 1e3) : 0.0;
+                                    r.tl.inl_cmp = compare_query(ih, ii, any ? ref2_any : ref2, any ? inst2_any : inst2,
+                                                                 any != 0, ref2);
+                                    ik.mismatches = r.tl.inl_cmp.mismatches;
+                                    ik.ties = r.tl.inl_cmp.ties;
+                                    ik.overflows = not_ok;
+                                    if (ik.mismatches || not_ok) {
+                                        failed = true;
+                                        std::printf("  INLINE QUERY %s %s %s %s two-level: %s; %llu overflows or bad "
+                                                    "indices\n",
+                                                    s.name.c_str(), view.name.c_str(), r.rays_kind.c_str(),
+                                                    r.query.c_str(), describe(r.tl.inl_cmp).c_str(),
+                                                    (unsigned long long)not_ok);
+                                    }
+                                }
                                 two_level_line(r);
                                 first_disagreement(r.tl.flat, hits, inst, flat_hits);
                                 if (kr.mismatches || st.bad_indices) {

@@ -234,6 +234,34 @@ void print_two_level_summary(const std::vector<Row>& rows) {
     std::printf("two-level vs flattened hits (GPU kernels), all rays and queries: %s\n",
                 describe(flat_all, false).c_str());
     std::printf("two-level kernel vs trace_two_level_cpu, all rays and queries: %s\n", describe(cmp).c_str());
+    // The inline query on the same files (one thread per ray, no persistent warps): which of
+    // the two schedules suits two-level scenes, closest hit, every single ray set in the means.
+    QueryCompare inl_cmp;
+    bool inl_ran = false;
+    for (const Row& r : rows) {
+        if (!r.tl.present || !r.tl.inl.ran) continue;
+        inl_ran = true;
+        add(inl_cmp, r.tl.inl_cmp);
+    }
+    if (inl_ran) {
+        size_t scenes = 0;
+        const double ratio = two_level_inline_ratio(rows, &scenes);
+        std::printf("inline query on the two-level files / two-level kernel, closest hit, every ray set in the means "
+                    "(each scene weighted equally, %zu scene(s)): %s; vs trace_two_level_cpu: %s\n",
+                    scenes, fmt(scenes > 0, "%.2fx", ratio).c_str(), describe(inl_cmp).c_str());
+    }
+}
+
+double two_level_inline_ratio(const std::vector<Row>& rows, size_t* scenes) {
+    std::map<std::string, std::vector<double>> by_scene;
+    for (const Row& r : rows)
+        if (r.tl.present && r.tl.inl.ran && r.tl.k.ran && r.query == "closest" && r.in_means() && r.tl.k.ms > 0 &&
+            r.tl.inl.ms > 0)
+            by_scene[r.scene].push_back(r.tl.k.ms / r.tl.inl.ms);  // the same rays: speed ratio
+    std::vector<double> per;
+    for (const auto& [scene, v] : by_scene) per.push_back(geomean(v));
+    if (scenes) *scenes = per.size();
+    return geomean(per);
 }
 
 void print_inline_summary(const std::vector<Row>& rows) {

@@ -56,6 +56,10 @@ struct TwoLevelResult {
     double cpu_mrays = 0;
     KernelResult k;    ///< the kernel; k.mismatches: cmp.mismatches
     QueryCompare cmp;  ///< against trace_two_level_cpu (hit_compare.h, compare_query)
+    /// The inline query (query.h, one thread per ray, SceneLevels::kTwoLevel) on the same
+    /// file and rays; inl.mismatches: inl_cmp.mismatches against trace_two_level_cpu.
+    KernelResult inl;
+    QueryCompare inl_cmp;
     FlatCompare flat;   ///< against the flattened file's hits (GPU: its CWBVH kernel's)
     bool flat_gpu = false;  ///< flat compared GPU hits (else the CPU references)
 };
@@ -131,6 +135,10 @@ SetMeans<kKernelFigures> kernel_means(const std::vector<Row>& rows, int set);
 /// where both ran: two-level Mrays/s, flattened CWBVH Mrays/s, two-level / flattened.
 enum TwoLevelFigure { kTwoLevelMrays, kFlatMrays, kTwoOverFlat };
 SetMeans<3> two_level_means(const std::vector<Row>& rows, int set);
+/// The inline query on the two-level files over the two-level kernel, closest hit, every
+/// single ray set in the means (r.tl.inl.mrays / r.tl.k.mrays; per scene the geometric mean
+/// over its sets, then over the scenes); *scenes: how many; 0 when none ran.
+double two_level_inline_ratio(const std::vector<Row>& rows, size_t* scenes);
 
 /// The inline query beside the CWBVH kernel, closest hit, on views where both ran:
 /// inline Mrays/s, CWBVH Mrays/s, inline / CWBVH.
