@@ -23,13 +23,15 @@
 # compiled a second time without flags, which keeps the instancing (format 1.2,
 # SCENES/instanced/NAME.cwbvh; its wall time is printed and goes to the compile times as
 # "instanced:NAME"). cwbvh_gpu_check pairs it with the flattened file of the same stem:
-# the two-level kernel traces the flattened file's rays, is checked bit for bit against
-# trace_two_level_cpu, its hits are compared with the flattened file's, and its speed
-# is printed beside the flattened file's CWBVH kernel (geometric mean, target 0.8x).
+# the two-level kernel traces the flattened file's rays, is checked against
+# trace_two_level_cpu (closest hit bit for bit up to equal-t ties; any hit by hit/miss),
+# its hits are compared with the flattened file's, and its speed is printed beside the
+# flattened file's CWBVH kernel (geometric mean, target 0.8x).
 #
 # The inline query (cwbvh/kernels/query.h: intersect from a kernel of the caller's, one
-# thread per ray) traces every ray set of the flattened files as well: checked bit for bit
-# against the CPU reference, its Mrays/s printed beside the batch CWBVH kernel's.
+# thread per ray) traces every ray set of the flattened files and of the two-level files as
+# well: checked against the CPU references the same way, its Mrays/s printed beside the
+# batch CWBVH kernel's and the two-level kernel's.
 #
 # Rays come from the view catalog (views/catalog.txt: every view of each scene, inside the
 # enclosed ones; scene key = the .cwbvh file's stem), 2048x2048, primary + diffuse bounces 1-4.
