@@ -38,6 +38,16 @@ Row row(const std::string& scene, const std::string& view, int bounce, size_t ra
 
 double mrays(size_t rays, double ms) { return double(rays) / (ms * 1e3); }
 
+/// A closest-hit row of scene alpha (CWBVH 2 ms) with an instanced file whose two-level
+/// kernel took `tl_ms`.
+Row two_level_row(const std::string& view, double tl_ms) {
+    Row r = row("alpha", view, 0, kBig, 2.0);
+    r.tl.present = true;
+    r.tl.k.ran = true;
+    r.tl.k.ms = tl_ms;
+    return r;
+}
+
 TEST(GpuCheckSummary, ScenesWeighEquallyWhateverTheirViews) {
     // alpha: two views at 1 ms and 4 ms (its mean: 2 ms); beta: one view at 8 ms.
     // Per view then per scene: sqrt(M(2 ms) * M(8 ms)); pooling the three views would give
@@ -165,10 +175,7 @@ TEST(GpuCheckSummary, AnyHitRowsAreNotInTheMeans) {
 TEST(GpuCheckSummary, TwoLevelAndInlineRatiosAreOverTheFlattenedCwbvhKernel) {
     std::vector<Row> rows;
     for (int v = 0; v < 2; ++v) {
-        Row r = row("alpha", v ? "b" : "a", 0, kBig, 2.0);
-        r.tl.present = true;
-        r.tl.k.ran = true;
-        r.tl.k.ms = v ? 4.0 : 1.0;  // two-level / flat: 2 and 0.5 -> 1
+        Row r = two_level_row(v ? "b" : "a", v ? 4.0 : 1.0);  // two-level / flat: 2 and 0.5 -> 1
         r.inl.ran = true;
         r.inl.ms = v ? 8.0 : 2.0;  // inline / CWBVH: 0.25 and 1 -> 0.5
         rows.push_back(r);
@@ -193,10 +200,7 @@ TEST(GpuCheckSummary, TwoLevelAndInlineRatiosAreOverTheFlattenedCwbvhKernel) {
 TEST(GpuCheckSummary, TheInlineQueryOnTwoLevelFilesIsOverTheTwoLevelKernel) {
     std::vector<Row> rows;
     for (int v = 0; v < 2; ++v) {
-        Row r = row("alpha", v ? "b" : "a", 0, kBig, 2.0);
-        r.tl.present = true;
-        r.tl.k.ran = true;
-        r.tl.k.ms = 4.0;
+        Row r = two_level_row(v ? "b" : "a", 4.0);
         r.tl.inl.ran = true;
         r.tl.inl.ms = v ? 1.0 : 4.0;  // inline / two-level kernel: 4 and 1 -> 2
         rows.push_back(r);

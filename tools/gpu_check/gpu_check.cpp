@@ -1078,37 +1078,44 @@ int main(int argc, char** argv) {
                                 std::vector<Hit> hits;
                                 r.postpone.emplace_back(pc, run_checked(Kernel::kCwbvh, kname, pc, hits));
                             }
-                            if (!ds->has_two_level()) {  // the inline query, one thread per ray
+                            // The inline query, one thread per ray, on `qview` (the flattened file, or
+                            // the instanced one with its instances), checked with compare_query
+                            // against `cpu` (closest or any hit, as the query) and `closest`.
+                            auto inline_checked = [&](const SceneView& qview, const std::vector<Hit>& cpu,
+                                                      const std::vector<uint32_t>& cpu_inst,
+                                                      const std::vector<Hit>& closest, KernelResult& kr,
+                                                      QueryCompare& cmp) {
+                                const bool two = qview.two_level();
                                 std::vector<Hit> hits;
+                                std::vector<uint32_t> inst;
                                 uint64_t not_ok = 0;
-                                const double ms = run_inline(ds->view(), d_rays.p, d_hits.p, rays.size(), any != 0,
-                                                             repeat, hits, not_ok);
-                                const std::vector<Hit>& cpu = any ? ref_any : ref;
-                                const std::vector<uint32_t> none(rays.size(), kInvalidIndex);
-                                KernelResult& kr = r.inl;
+                                kr.ms = run_inline(qview, d_rays.p, d_hits.p, rays.size(), any != 0, repeat, hits,
+                                                   not_ok, two ? &inst : nullptr);
+                                if (!two) inst.assign(rays.size(), kInvalidIndex);
                                 kr.ran = true;
-                                kr.ms = ms;
-                                kr.mrays = ms > 0 ? double(rays.size()) / (ms * 1e3) : 0.0;
-                                r.inl_cmp = compare_query(hits, none, cpu, none, any != 0, ref);
-                                kr.mismatches = r.inl_cmp.mismatches;
-                                kr.ties = r.inl_cmp.ties;
+                                kr.mrays = kr.ms > 0 ? double(rays.size()) / (kr.ms * 1e3) : 0.0;
+                                cmp = compare_query(hits, inst, cpu, cpu_inst, any != 0, closest);
+                                kr.mismatches = cmp.mismatches;
+                                kr.ties = cmp.ties;
                                 kr.overflows = not_ok;
-                                const int64_t first = r.inl_cmp.first_bad;
-                                if (kr.mismatches || not_ok) {
-                                    failed = true;
-                                    std::printf("  INLINE QUERY %s %s %s %s: %s; %llu overflows or bad indices\n",
-                                                s.name.c_str(), view.name.c_str(), r.rays_kind.c_str(),
-                                                r.query.c_str(), describe(r.inl_cmp).c_str(),
-                                                (unsigned long long)not_ok);
-                                    if (first >= 0) {
-                                        const size_t i = size_t(first);
-                                        std::printf("    first: ray %zu: gpu prim %u t %.9g u %.9g v %.9g, cpu prim "
-                                                    "%u t %.9g u %.9g v %.9g\n",
-                                                    i, hits[i].prim, double(hits[i].t), double(hits[i].u),
-                                                    double(hits[i].v), cpu[i].prim, double(cpu[i].t),
-                                                    double(cpu[i].u), double(cpu[i].v));
-                                    }
+                                if (kr.mismatches == 0 && not_ok == 0) return;
+                                failed = true;
+                                std::printf("  INLINE QUERY %s %s %s %s%s: %s; %llu overflows or bad indices\n",
+                                            s.name.c_str(), view.name.c_str(), r.rays_kind.c_str(), r.query.c_str(),
+                                            two ? " two-level" : "", describe(cmp).c_str(),
+                                            (unsigned long long)not_ok);
+                                if (cmp.first_bad >= 0) {
+                                    const size_t i = size_t(cmp.first_bad);
+                                    std::printf("    first: ray %zu: gpu inst %u prim %u t %.9g u %.9g v %.9g, cpu "
+                                                "inst %u prim %u t %.9g u %.9g v %.9g\n",
+                                                i, inst[i], hits[i].prim, double(hits[i].t), double(hits[i].u),
+                                                double(hits[i].v), cpu_inst[i], cpu[i].prim, double(cpu[i].t),
+                                                double(cpu[i].u), double(cpu[i].v));
                                 }
+                            };
+                            if (!ds->has_two_level()) {
+                                const std::vector<uint32_t> none(rays.size(), kInvalidIndex);
+                                inline_checked(ds->view(), any ? ref_any : ref, none, ref, r.inl, r.inl_cmp);
                             }
                             if (ds2) {  // the two-level kernel on the instanced file, the same rays
                                 DevBuf<uint32_t> d_inst(rays.size());
@@ -1133,29 +1140,8 @@ int main(int argc, char** argv) {
                                 const std::vector<Hit>& flat_hits = cw_hits.empty() ? (any ? ref_any : ref) : cw_hits;
                                 r.tl.flat = flat_compare(hits, flat_hits, any != 0);
                                 r.tl.flat_gpu = !cw_hits.empty();
-                                {  // the inline query on the instanced file, one thread per ray
-                                    std::vector<Hit> ih;
-                                    std::vector<uint32_t> ii;
-                                    uint64_t not_ok = 0;
-                                    KernelResult& ik = r.tl.inl;
-                                    ik.ms = run_inline(ds2->view(), d_rays.p, d_hits.p, rays.size(), any != 0, repeat,
-                                                       ih, not_ok, &ii);
-                                    ik.ran = true;
-                                    ik.mrays = ik.ms > 0 ? double(rays.size()) / (ik.ms * 1e3) : 0.0;
-                                    r.tl.inl_cmp = compare_query(ih, ii, any ? ref2_any : ref2, any ? inst2_any : inst2,
-                                                                 any != 0, ref2);
-                                    ik.mismatches = r.tl.inl_cmp.mismatches;
-                                    ik.ties = r.tl.inl_cmp.ties;
-                                    ik.overflows = not_ok;
-                                    if (ik.mismatches || not_ok) {
-                                        failed = true;
-                                        std::printf("  INLINE QUERY %s %s %s %s two-level: %s; %llu overflows or bad "
-                                                    "indices\n",
-                                                    s.name.c_str(), view.name.c_str(), r.rays_kind.c_str(),
-                                                    r.query.c_str(), describe(r.tl.inl_cmp).c_str(),
-                                                    (unsigned long long)not_ok);
-                                    }
-                                }
+                                inline_checked(ds2->view(), any ? ref2_any : ref2, any ? inst2_any : inst2, ref2,
+                                               r.tl.inl, r.tl.inl_cmp);
                                 two_level_line(r);
                                 first_disagreement(r.tl.flat, hits, inst, flat_hits);
                                 if (kr.mismatches || st.bad_indices) {

@@ -202,15 +202,15 @@ struct QueryCompare {
     uint64_t not_bitwise = 0;  ///< rays whose record or instance differs from the reference's in any bit
     uint64_t ties = 0;         ///< closest hit: another triangle at the same t (accepted)
     uint64_t near = 0;         ///< closest hit: the same triangle, t within kKernelUlpBound (accepted)
-    int64_t first_bad = -1;    ///< first mismatching ray, -1 if none
+    int64_t first_bad = -1;    ///< first mismatching ray, -1 if none (not summed: rays of one set)
+    QueryCompare& operator+=(const QueryCompare& o) {
+        mismatches += o.mismatches;
+        not_bitwise += o.not_bitwise;
+        ties += o.ties;
+        near += o.near;
+        return *this;
+    }
 };
-
-inline void add(QueryCompare& total, const QueryCompare& c) {
-    total.mismatches += c.mismatches;
-    total.not_bitwise += c.not_bitwise;
-    total.ties += c.ties;
-    total.near += c.near;
-}
 
 inline QueryCompare compare_query(const std::vector<Hit>& hits, const std::vector<uint32_t>& inst,
                                   const std::vector<Hit>& ref, const std::vector<uint32_t>& ref_inst, bool any,

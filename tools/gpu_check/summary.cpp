@@ -204,7 +204,7 @@ void print_two_level_summary(const std::vector<Row>& rows) {
         present = true;
         gpu = gpu || r.tl.k.ran;
         flat_all += r.tl.flat;
-        add(cmp, r.tl.cmp);
+        cmp += r.tl.cmp;
     }
     if (!present) return;
     if (!gpu) {
@@ -241,7 +241,7 @@ void print_two_level_summary(const std::vector<Row>& rows) {
     for (const Row& r : rows) {
         if (!r.tl.present || !r.tl.inl.ran) continue;
         inl_ran = true;
-        add(inl_cmp, r.tl.inl_cmp);
+        inl_cmp += r.tl.inl_cmp;
     }
     if (inl_ran) {
         size_t scenes = 0;
@@ -271,7 +271,7 @@ void print_inline_summary(const std::vector<Row>& rows) {
     for (const Row& r : rows) {
         if (!r.inl.ran) continue;
         ran = true;
-        add(cmp, r.inl_cmp);
+        cmp += r.inl_cmp;
         not_ok += r.inl.overflows;
     }
     if (!ran) return;
